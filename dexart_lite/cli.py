@@ -1,0 +1,68 @@
+"""The ``dexart-lite`` command line: one console script, one subcommand per job.
+
+Each subcommand lives next to the code it runs, in a module that defines
+``add_arguments(parser)`` and ``run(args) -> int``. Only the chosen module is imported, so
+``dexart-lite objects list`` does not pay for importing torch.
+
+Errors that come from bad input (``ValueError``, ``FileNotFoundError``, ...) are printed as one
+readable line and exit with status 2; ``--traceback`` shows the full stack instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# subcommand -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("dexart_lite.demo", "run the main job on defaults (what `make demo` runs)"),
+    "objects": ("dexart_lite.objects.cli", "list, show, generate and compare the articulated objects"),
+    "render": ("dexart_lite.render", "save a GIF of one episode"),
+    "solve": ("dexart_lite.scripted", "run the scripted (privileged-state) solver on a task"),
+    "train": ("dexart_lite.rl.ppo", "train a point-cloud PPO policy"),
+    "eval": ("dexart_lite.rl.evaluate", "evaluate a checkpoint on seen or unseen objects"),
+    "data": ("dexart_lite.pretrain.data", "generate point-cloud pretraining datasets"),
+    "pretrain": ("dexart_lite.pretrain.train", "pretrain the PointNet encoder"),
+}
+
+# The exceptions that mean "the user asked for something that cannot be done".
+USER_ERRORS = (ValueError, FileNotFoundError, KeyError, RuntimeError, OSError)
+
+
+def _top_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dexart-lite", description=__doc__.splitlines()[0])
+    parser.add_argument("--traceback", action="store_true", help="show the full traceback on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    show_traceback = "--traceback" in argv
+    argv = [a for a in argv if a != "--traceback"]
+    top = _top_parser()
+    if not argv or argv[0] not in COMMANDS:
+        top.parse_args(argv or ["--help"])  # prints help or "invalid choice" and exits
+        return 2
+    name, rest = argv[0], argv[1:]
+    module = importlib.import_module(COMMANDS[name][0])
+    parser = argparse.ArgumentParser(prog=f"dexart-lite {name}", description=COMMANDS[name][1])
+    module.add_arguments(parser)
+    args = parser.parse_args(rest)
+    try:
+        return int(module.run(args) or 0)
+    except USER_ERRORS as err:
+        if show_traceback:
+            raise
+        print(f"dexart-lite {name}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"dexart-lite {name}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

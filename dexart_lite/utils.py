@@ -1,0 +1,17 @@
+"""Small helpers shared by scripts, tutorials and tests."""
+
+from __future__ import annotations
+
+import os
+
+
+def fast_mode() -> bool:
+    """True when ``DEXART_LITE_FAST=1``: tutorials and scripts shrink their budgets for the test suite."""
+    return os.environ.get("DEXART_LITE_FAST", "0") not in ("", "0", "false", "False")
+
+
+def check_choice(kind: str, value, choices) -> None:
+    """Raise ``ValueError`` naming ``value`` and the valid ``choices`` unless ``value`` is one of them."""
+    choices = list(choices)
+    if value not in choices:
+        raise ValueError(f"unknown {kind} {value!r}; valid choices: {', '.join(map(str, choices))}")

@@ -1,0 +1,200 @@
+"""One PyBullet world per environment: a ``BulletClient`` in DIRECT mode, bodies addressed by name.
+
+This is the only module that imports ``pybullet``. Everything else talks to a ``BulletSim`` (and to
+the ``Body`` records it returns), never to the global ``pybullet`` module, so two simulations in one
+process cannot interfere (bullet3 #1643, panda-gym #7).
+
+Units: metres, seconds, radians, kilograms, newtons.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pybullet
+from pybullet_utils.bullet_client import BulletClient
+
+# Re-exported constants, so callers never import pybullet themselves.
+POSITION_CONTROL = pybullet.POSITION_CONTROL
+VELOCITY_CONTROL = pybullet.VELOCITY_CONTROL
+JOINT_FIXED = pybullet.JOINT_FIXED
+JOINT_POINT2POINT = pybullet.JOINT_POINT2POINT
+ER_TINY_RENDERER = pybullet.ER_TINY_RENDERER
+ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX = pybullet.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX
+ER_NO_SEGMENTATION_MASK = pybullet.ER_NO_SEGMENTATION_MASK
+BASE_LINK = -1  # PyBullet's link index of a body's root
+
+
+@dataclass
+class Body:
+    """A loaded body and its name tables (built once at load; never look names up per step)."""
+
+    uid: int
+    name: str
+    joints: dict[str, int] = field(default_factory=dict)  # joint name -> joint index
+    links: dict[str, int] = field(default_factory=dict)  # link name -> link index (root: -1)
+    movable: list[int] = field(default_factory=list)  # indices of non-fixed joints, in URDF order
+    lower: np.ndarray = field(default_factory=lambda: np.zeros(0))  # limits of the movable joints (rad)
+    upper: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def joint(self, name: str) -> int:
+        if name not in self.joints:
+            raise KeyError(f"{self.name} has no joint {name!r}; joints: {', '.join(self.joints)}")
+        return self.joints[name]
+
+    def link(self, name: str) -> int:
+        if name not in self.links:
+            raise KeyError(f"{self.name} has no link {name!r}; links: {', '.join(self.links)}")
+        return self.links[name]
+
+
+class BulletSim:
+    """A PyBullet world: physics time step, bodies, stepping, contacts, rendering.
+
+    Args:
+        dt: physics time step in seconds (DexArt: 0.004 s, 250 Hz).
+        solver_iterations: constraint-solver iterations per step (PyBullet's default is 50).
+    """
+
+    GRAVITY = (0.0, 0.0, -9.81)  # m/s^2
+
+    def __init__(self, dt: float = 0.004, solver_iterations: int = 50):
+        self.dt = float(dt)
+        self.client: BulletClient | None = BulletClient(connection_mode=pybullet.DIRECT)
+        self.client.setTimeStep(self.dt)
+        self.client.setGravity(*self.GRAVITY)
+        # Deterministic pair ordering: the same seed and actions replay the same contacts.
+        self.client.setPhysicsEngineParameter(numSolverIterations=solver_iterations, deterministicOverlappingPairs=1)
+        self.bodies: dict[str, Body] = {}
+
+    @property
+    def c(self) -> BulletClient:
+        if self.client is None:
+            raise RuntimeError("this simulation has been closed")
+        return self.client
+
+    # ----------------------------------------------------------------------------- bodies
+    def load_urdf(self, name: str, path: Path | str, position=(0, 0, 0), orientation=(0, 0, 0, 1),
+                  fixed_base: bool = True, self_collision: bool = False) -> Body:
+        """Load a URDF and index its joints and links by name."""
+        flags = pybullet.URDF_MAINTAIN_LINK_ORDER
+        if self_collision:
+            # Collide links with each other, but never with any of their ancestors.
+            flags |= pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
+        uid = self.c.loadURDF(str(path), basePosition=position, baseOrientation=orientation,
+                              useFixedBase=fixed_base, flags=flags)
+        return self._register(name, uid)
+
+    def create_box(self, name: str, half_extents, position, rgba=(0.8, 0.75, 0.65, 1.0), mass: float = 0.0) -> Body:
+        """A box (static when mass is 0): the table and the robot's pedestal."""
+        col = self.c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half_extents)
+        vis = self.c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half_extents, rgbaColor=rgba)
+        uid = self.c.createMultiBody(baseMass=mass, baseCollisionShapeIndex=col, baseVisualShapeIndex=vis,
+                                     basePosition=position)
+        return self._register(name, uid)
+
+    def _register(self, name: str, uid: int) -> Body:
+        if name in self.bodies:
+            raise ValueError(f"a body named {name!r} is already loaded")
+        body = Body(uid=uid, name=name)
+        base_name = self.c.getBodyInfo(uid)[0].decode()
+        body.links[base_name] = BASE_LINK
+        lower, upper = [], []
+        for j in range(self.c.getNumJoints(uid)):
+            info = self.c.getJointInfo(uid, j)
+            joint_name, link_name = info[1].decode(), info[12].decode()
+            if joint_name in body.joints or link_name in body.links:
+                raise ValueError(f"{name}: duplicate joint or link name {joint_name!r}/{link_name!r}")
+            body.joints[joint_name], body.links[link_name] = j, j
+            if info[2] != pybullet.JOINT_FIXED:
+                body.movable.append(j)
+                lower.append(info[8])
+                upper.append(info[9])
+            # URDF damping is explicit and unstable at our gains: friction is modelled with motors instead.
+            self.c.changeDynamics(uid, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
+        body.lower, body.upper = np.array(lower), np.array(upper)
+        self.bodies[name] = body
+        return body
+
+    def remove(self, body: Body) -> None:
+        self.c.removeBody(body.uid)
+        del self.bodies[body.name]
+
+    # ----------------------------------------------------------------------------- state
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.c.stepSimulation()
+
+    def joint_states(self, body: Body, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (rad) and velocities (rad/s) of ``joints``."""
+        states = self.c.getJointStates(body.uid, joints)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def reset_joints(self, body: Body, joints: list[int], positions, velocities=None) -> None:
+        velocities = np.zeros(len(joints)) if velocities is None else velocities
+        for j, q, v in zip(joints, positions, velocities):
+            self.c.resetJointState(body.uid, j, float(q), float(v))
+
+    def link_frames(self, body: Body, links: list[int], velocity: bool = False):
+        """World poses of link frames (URDF frames, not centres of mass).
+
+        Returns positions (L, 3), quaternions (L, 4, xyzw) and, with ``velocity``, linear and
+        angular velocities (L, 3) each. The root (-1) is handled too.
+        """
+        pos, quat, lin, ang = [], [], [], []
+        states = self.c.getLinkStates(body.uid, [k for k in links if k != BASE_LINK],
+                                      computeLinkVelocity=int(velocity), computeForwardKinematics=1)
+        it = iter(states)
+        for k in links:
+            if k == BASE_LINK:
+                p, q = self.base_frame(body)
+                v, w = self.c.getBaseVelocity(body.uid)
+            else:
+                s = next(it)
+                p, q = s[4], s[5]
+                v, w = (s[6], s[7]) if velocity else ((0, 0, 0), (0, 0, 0))
+            pos.append(p), quat.append(q), lin.append(v), ang.append(w)
+        if velocity:
+            return np.array(pos), np.array(quat), np.array(lin), np.array(ang)
+        return np.array(pos), np.array(quat)
+
+    def base_frame(self, body: Body):
+        """World pose of the root link's URDF frame.
+
+        ``getBasePositionAndOrientation`` returns the root's centre of mass, not its frame, so the
+        inertial offset is removed here.
+        """
+        com_pos, com_quat = self.c.getBasePositionAndOrientation(body.uid)
+        local_pos, local_quat = self.c.getDynamicsInfo(body.uid, BASE_LINK)[3:5]
+        inv_pos, inv_quat = self.c.invertTransform(local_pos, local_quat)
+        return self.c.multiplyTransforms(com_pos, com_quat, inv_pos, inv_quat)
+
+    def reset_base(self, body: Body, position, orientation) -> None:
+        """Place the root link's URDF frame at ``position``/``orientation`` and stop it."""
+        local_pos, local_quat = self.c.getDynamicsInfo(body.uid, BASE_LINK)[3:5]
+        com_pos, com_quat = self.c.multiplyTransforms(position, orientation, local_pos, local_quat)
+        self.c.resetBasePositionAndOrientation(body.uid, com_pos, com_quat)
+        self.c.resetBaseVelocity(body.uid, (0, 0, 0), (0, 0, 0))
+
+    def contact_forces(self, body_a: Body, body_b: Body, link_b: int | None = None) -> dict[int, float]:
+        """Summed normal force (N) per link of ``body_a`` touching ``body_b`` (or its link ``link_b``)."""
+        kwargs = {} if link_b is None else {"linkIndexB": link_b}
+        forces: dict[int, float] = {}
+        for c in self.c.getContactPoints(bodyA=body_a.uid, bodyB=body_b.uid, **kwargs):
+            forces[c[3]] = forces.get(c[3], 0.0) + c[9]
+        return forces
+
+    def close(self) -> None:
+        """Disconnect; safe to call twice."""
+        if self.client is not None:
+            self.client.disconnect()
+            self.client = None
+            self.bodies = {}
+
+    def __del__(self):  # a garbage-collected env must not leak its physics server
+        try:
+            self.close()
+        except Exception:
+            pass

@@ -35,10 +35,15 @@ MAX_ANGULAR_SPEED = 1.0  # rad/s at |a| = 1
 IK_DAMPING = 0.05  # damped-least-squares lambda
 MAX_ARM_JOINT_SPEED = np.pi  # rad/s, per-joint clip of the IK solution
 
-# The start pose. DexArt never sets one (the arm starts at SAPIEN's load-time zeros, a wrist
-# singularity with q5 = 0); dexart_lite makes it explicit: DexArt/DexPoint's "face front"
-# arm_init_qpos with the hand open (all hand joints at their lower limit but clamped to >= 0).
-ARM_INIT_QPOS = (0.0, 0.0, 0.0, np.pi, np.pi / 2, np.pi)
+# The start pose. DexArt never sets one: its arm starts at SAPIEN's load-time zeros, a wrist
+# singularity (q5 = 0, smallest singular value of the flange Jacobian 0). DexPoint's "face front"
+# pose (0, 0, 0, pi, pi/2, pi) folds the arm near its base (smallest singular value 0.088, so the
+# 0.05 damping eats 24 % of a twist along that direction). dexart_lite starts from the same family
+# (palm facing forward, fingers sideways) with the arm raised and extended, found by a grid search
+# over q2, q3, q5 for the best-conditioned pose with the palm about 0.4 m ahead and 0.3 m up:
+# palm (base_link) at (0.394, -0.045, 0.325) m from the robot base, smallest singular value 0.167.
+# The hand starts open: zeros, clamped into the limits (the thumb rotation to 0.263 rad).
+ARM_INIT_QPOS = (0.0, -0.4, -0.4, np.pi, 1.0, np.pi)
 
 # Link groups (DexArt's contact groups; "palm" is the Allegro base_link, not palm_center).
 FINGER_GROUPS = {

@@ -178,12 +178,11 @@ class BulletSim:
         self.c.resetBasePositionAndOrientation(body.uid, com_pos, com_quat)
         self.c.resetBaseVelocity(body.uid, (0, 0, 0), (0, 0, 0))
 
-    def contact_forces(self, body_a: Body, body_b: Body, link_b: int | None = None) -> dict[int, float]:
-        """Summed normal force (N) per link of ``body_a`` touching ``body_b`` (or its link ``link_b``)."""
-        kwargs = {} if link_b is None else {"linkIndexB": link_b}
-        forces: dict[int, float] = {}
-        for c in self.c.getContactPoints(bodyA=body_a.uid, bodyB=body_b.uid, **kwargs):
-            forces[c[3]] = forces.get(c[3], 0.0) + c[9]
+    def contact_forces(self, body_a: Body, body_b: Body) -> dict[tuple[int, int], float]:
+        """Summed normal force (N) per touching (link of ``body_a``, link of ``body_b``) pair."""
+        forces: dict[tuple[int, int], float] = {}
+        for c in self.c.getContactPoints(bodyA=body_a.uid, bodyB=body_b.uid):
+            forces[c[3], c[4]] = forces.get((c[3], c[4]), 0.0) + c[9]
         return forces
 
     def close(self) -> None:

@@ -1,0 +1,296 @@
+"""``DexArtEnv``: the scene and the one step loop shared by the four tasks.
+
+A task (``faucet.py``, ``bucket.py``, ``laptop.py``, ``toilet.py``) only sets class constants
+(robot base, camera, crop, randomisation) and fills four hooks: ``progress``, ``stage``,
+``is_success`` and ``reward_terms``. It never overrides ``step``, whose order is fixed:
+
+    act -> simulate -> read one State snapshot -> evaluate (info) -> observe -> reward
+
+Reward, success and the observation's state vector are pure functions of the snapshot. The reward
+is returned as named terms in ``info["reward_terms"]`` and the reward is their sum.
+
+Frames: world z up, table top at z = 0; the robot base sits at ``ROBOT_BASE`` facing +x with the
+identity orientation, so robot-base coordinates are world coordinates minus ``ROBOT_BASE``.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from dexart_lite import objects as objects_lib
+from dexart_lite import pointcloud as pc
+from dexart_lite.articulated import PART_LINK, ArticulatedObjects
+from dexart_lite.camera import CameraPose
+from dexart_lite.objects import ObjectInfo
+from dexart_lite.robot import ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, Robot, RobotState
+from dexart_lite.sensor import PointCloudSensor, SensorConfig
+from dexart_lite.sim import BASE_LINK, BulletSim
+from dexart_lite.utils import check_choice
+
+from dexart_lite.registration import HORIZON  # noqa: E402  (control steps per episode)
+GROUPS = tuple(FINGER_GROUPS)  # ("thumb", "index", "middle", "ring", "palm")
+CONTACT_IMPULSE = 0.01  # N*s summed over a link pair's contact points (DexArt), i.e. 2.5 N at dt 0.004
+MAX_JOINT_SPEED = 50.0  # rad/s; faster means the simulation blew up
+MAX_OBJECT_SPEED = 10.0  # m/s
+TABLE_HALF_EXTENTS = (0.65, 0.65, 0.025)  # m, top surface at z = 0
+VIEWER_SIZE = (320, 240)  # px, env.render()
+
+
+@dataclass(frozen=True)
+class State:
+    """One reading of the simulation after a control step (world frame, SI units)."""
+
+    t: int  # control steps taken in this episode
+    horizon: int
+    obj: ObjectInfo
+    robot: RobotState
+    flange_delta: np.ndarray  # (3,) m, link6 displacement over the step
+    commanded_velocity: np.ndarray  # (3,) m/s, the linear twist asked for
+    control_dt: float  # s
+    palm_x_axis: np.ndarray  # (3,) palm normal of base_link in world
+    palm_z_prev: float  # m, palm height one step earlier
+    q: float  # rad, task joint
+    qd: float  # rad/s
+    handle_pos: np.ndarray  # (3,) the functional part's grasp point
+    base_pos: np.ndarray  # (3,) object root frame
+    base_pos_at_reset: np.ndarray  # (3,)
+    base_linvel: np.ndarray  # (3,) m/s
+    base_angvel: np.ndarray  # (3,) rad/s
+    part_contact: np.ndarray  # (5,) bool per GROUPS, touching the functional part
+    body_contact: np.ndarray  # (5,) bool per GROUPS, touching the object's root link
+    arm_contacts: int  # arm links touching any object link
+    unstable: bool  # non-finite or runaway values were read
+
+    @property
+    def dist(self) -> float:
+        """Palm (base_link origin) to grasp point, m."""
+        return float(np.linalg.norm(self.robot.palm_pos - self.handle_pos))
+
+    @property
+    def n_fingers(self) -> int:
+        """Finger groups (thumb, index, middle, ring) touching the functional part."""
+        return int(self.part_contact[:4].sum())
+
+    @property
+    def palm_contact(self) -> bool:
+        return bool(self.part_contact[4])
+
+
+class DexArtEnv(gym.Env):
+    """Base class of the four tasks; see the module docstring. Keyword arguments:
+
+    split: "seen", "unseen" or "seen_half"; object_names: explicit list instead of a split;
+    camera: override of the camera pose, a ``CameraPose`` or ``{"eye": [...], "target": [...]}``;
+    num_points, imagination, point_noise, camera_noise: point-cloud settings (``SensorConfig``);
+    randomize: DexArt's object pose randomisation; dt, frame_skip, solver_iterations: physics;
+    render_mode: None or "rgb_array".
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 25}
+    # ---- filled in by each task
+    CATEGORY: str = ""
+    ROBOT_BASE: tuple = (-0.5, 0.0, 0.0)  # m, world
+    PEDESTAL: tuple | None = None  # (centre, half extents) of the box the robot stands on, m
+    CAMERA: CameraPose
+    VIEWER: CameraPose
+    CROP: tuple = ()  # (xmin, xmax, ymin, ymax, zmin, zmax), m, robot-base frame
+    RAND_POS: float = 0.0  # m, one-sided uniform [0, RAND_POS) on x, y and z (as DexArt)
+    RAND_YAW: float = 0.0  # rad, uniform [-RAND_YAW, RAND_YAW]
+    TERMINATE_ON_SUCCESS: bool = True
+    EXTRA_STATE: int = 0  # length of extra_state()
+
+    def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
+                 imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
+                 randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
+                 render_mode: str | None = None, **unknown):
+        if unknown:
+            valid = [n for n in inspect.signature(DexArtEnv.__init__).parameters if n not in ("self", "unknown")]
+            raise ValueError(f"unknown keyword(s) {sorted(unknown)}; valid keywords: {', '.join(valid)}")
+        check_choice("render_mode", render_mode, [None, "rgb_array"])
+        if object_names is None:
+            infos = objects_lib.list_objects(self.CATEGORY, split)
+        else:
+            infos = [objects_lib.get_object(n) for n in object_names]
+            for info in infos:
+                check_choice(f"{self.CATEGORY} object", info.name,
+                             [o.name for s in ("seen", "unseen") for o in objects_lib.list_objects(self.CATEGORY, s)])
+        if num_points < 1 or frame_skip < 1 or dt <= 0:
+            raise ValueError("num_points and frame_skip must be >= 1 and dt > 0")
+        self.render_mode, self.randomize, self.frame_skip = render_mode, randomize, int(frame_skip)
+        self.control_dt = dt * frame_skip
+        self.sim = BulletSim(dt=dt, solver_iterations=solver_iterations)
+        self.sim.create_box("table", TABLE_HALF_EXTENTS, (0, 0, -TABLE_HALF_EXTENTS[2]))
+        if self.PEDESTAL is not None:
+            self.sim.create_box("pedestal", self.PEDESTAL[1], self.PEDESTAL[0], rgba=(0.5, 0.5, 0.5, 1))
+        self.robot = Robot(self.sim, self.ROBOT_BASE, control_dt=self.control_dt)
+        self.labels = pc.LabelTable()
+        for name, link in self.robot.body.links.items():
+            self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
+        self.objects = ArticulatedObjects(self.sim, infos, self.labels)
+        self.sensor_config = SensorConfig(num_points=num_points, imagination=imagination, point_noise=point_noise,
+                                          camera_noise=camera_noise)
+        self.sensor = PointCloudSensor(self.sim, self.sensor_config, self._camera_pose(camera), self.CROP,
+                                       self.ROBOT_BASE, self.labels, self.robot.body)
+        self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}
+        self._arm_links = set(self.robot.arm_links)
+        self._contact_force = CONTACT_IMPULSE / dt  # N
+        n_pts = self.sensor_config.total_points
+        self.observation_space = spaces.Dict({
+            "point_cloud": spaces.Box(-np.inf, np.inf, (n_pts, 3), np.float32),
+            "imagined_mask": spaces.MultiBinary(n_pts),
+            "state": spaces.Box(-np.inf, np.inf, (self.state_dim,), np.float32),
+        })
+        self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self._state: State | None = None
+        self._obs: dict | None = None
+
+    # ------------------------------------------------------------------ task hooks
+    def progress(self, s: State) -> float:
+        raise NotImplementedError
+
+    def stage(self, s: State) -> int:
+        raise NotImplementedError
+
+    def is_success(self, s: State) -> bool:
+        raise NotImplementedError
+
+    def reward_terms(self, s: State, stage: int, progress: float, success: bool) -> dict[str, float]:
+        raise NotImplementedError
+
+    def extra_state(self, s: State) -> list[float]:
+        """Task-specific entries of the state vector, before t / horizon (bucket: palm-up)."""
+        return []
+
+    @property
+    def state_dim(self) -> int:
+        return ACTION_DIM + 3 + 3 + 3 + self.EXTRA_STATE + 1  # qpos, palm lin/ang vel, palm pos, extra, t/T
+
+    # ------------------------------------------------------------------ gymnasium API
+    @property
+    def horizon(self) -> int:
+        return self.spec.max_episode_steps if self.spec is not None and self.spec.max_episode_steps else HORIZON
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        name = options.pop("object", None)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: object")
+        rng = self.np_random
+        if name is None:
+            name = self.objects.names[int(rng.integers(len(self.objects.names)))]
+        check_choice("object", name, self.objects.names)
+        info = self.objects.infos[name]
+        position, yaw = np.add(self.ROBOT_BASE, info.position), info.yaw
+        if self.randomize:
+            position = position + rng.random(3) * self.RAND_POS
+            yaw = yaw + rng.uniform(-self.RAND_YAW, self.RAND_YAW)
+        self.objects.activate(name, position, yaw)
+        self.robot.reset()
+        self.sensor.reset(rng)
+        self._t = 0
+        self._base_at_reset = self.objects.base_state()[0]
+        self._state = self._read_state(np.zeros(ACTION_DIM), flange_before=None)
+        info_dict = self._evaluate(self._state)
+        self._obs = self._observe(self._state, info_dict)
+        return self._obs, info_dict
+
+    def step(self, action):
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        action = self._check_action(action)
+        before = self._state
+        self.robot.apply_action(action, before.robot.qpos)
+        for i in range(self.frame_skip):
+            self.robot.track_arm((i + 1) * self.sim.dt)
+            self.sim.step()
+        self._t += 1
+        state = self._read_state(action, flange_before=before.robot.flange_pos, palm_z_prev=before.robot.palm_pos[2])
+        info = self._evaluate(state)
+        if state.unstable:  # end the episode; never emit the non-finite reading
+            info["reward_terms"] = {k: 0.0 for k in info["reward_terms"]}
+            info["success"], info["point_labels"] = False, self._labels
+            return self._obs, 0.0, False, True, info
+        self._state = state
+        self._obs = self._observe(state, info)
+        reward = float(sum(info["reward_terms"].values()))
+        return self._obs, reward, bool(info["success"] and self.TERMINATE_ON_SUCCESS), False, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        camera = self.sensor.camera
+        pose = camera.pose
+        camera.set_pose(self.VIEWER)
+        try:
+            return camera.render_rgb(*VIEWER_SIZE)
+        finally:
+            camera.set_pose(pose)
+
+    def close(self):
+        if getattr(self, "sim", None) is not None:
+            self.sim.close()
+
+    # ------------------------------------------------------------------ the loop's pieces
+    def _check_action(self, action) -> np.ndarray:
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != (ACTION_DIM,):
+            raise ValueError(f"action must have shape ({ACTION_DIM},), got {action.shape}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"action has non-finite entries at indices {np.flatnonzero(~np.isfinite(action)).tolist()}")
+        return np.clip(action, -1.0, 1.0)
+
+    def _read_state(self, action: np.ndarray, flange_before, palm_z_prev: float | None = None) -> State:
+        robot = self.robot.read()
+        q, qd = self.objects.joint_state()
+        base_pos, base_lin, base_ang = self.objects.base_state()
+        part, body = np.zeros(len(GROUPS), bool), np.zeros(len(GROUPS), bool)
+        arm_links = set()
+        for (link_a, link_b), force in self.sim.contact_forces(self.robot.body, self.objects.body).items():
+            if force < self._contact_force:
+                continue
+            if link_a in self._arm_links:
+                arm_links.add(link_a)
+            elif link_a in self._group_of:
+                (part if link_b == PART_LINK else body)[self._group_of[link_a]] = True
+        unstable = not (np.all(np.isfinite(robot.qpos)) and np.all(np.isfinite(robot.qvel)) and np.isfinite(q)
+                        and np.all(np.isfinite(base_pos)) and np.abs(robot.qvel).max() < MAX_JOINT_SPEED
+                        and abs(qd) < MAX_JOINT_SPEED and np.linalg.norm(base_lin) < MAX_OBJECT_SPEED)
+        return State(
+            t=self._t, horizon=self.horizon, obj=self.objects.active, robot=robot,
+            flange_delta=np.zeros(3) if flange_before is None else robot.flange_pos - flange_before,
+            commanded_velocity=action[:3] * MAX_LINEAR_SPEED, control_dt=self.control_dt,
+            palm_x_axis=pc.quat_to_matrix(robot.palm_quat)[:, 0],
+            palm_z_prev=robot.palm_pos[2] if palm_z_prev is None else palm_z_prev,
+            q=q, qd=qd, handle_pos=self.objects.handle_position(), base_pos=base_pos,
+            base_pos_at_reset=self._base_at_reset, base_linvel=base_lin, base_angvel=base_ang,
+            part_contact=part, body_contact=body, arm_contacts=len(arm_links), unstable=bool(unstable))
+
+    def _evaluate(self, s: State) -> dict:
+        stage, progress, success = self.stage(s), self.progress(s), self.is_success(s)
+        return {"stage": stage, "progress": float(progress), "success": bool(success),
+                "object_name": s.obj.name, "sim_unstable": s.unstable,
+                "reward_terms": self.reward_terms(s, stage, progress, success)}
+
+    def _observe(self, s: State, info: dict) -> dict:
+        cloud = self.sensor.observe(self.np_random)
+        info["point_labels"] = self._labels = cloud.labels
+        r = s.robot
+        vector = np.concatenate([r.qpos, r.palm_linvel, r.palm_angvel, r.palm_pos, self.extra_state(s),
+                                 [s.t / s.horizon]])
+        return {"point_cloud": cloud.points, "imagined_mask": cloud.imagined.astype(np.int8),
+                "state": vector.astype(np.float32)}
+
+    def _camera_pose(self, camera) -> CameraPose:
+        if camera is None:
+            return self.CAMERA
+        if isinstance(camera, CameraPose):
+            return camera
+        if isinstance(camera, dict) and set(camera) == {"eye", "target"}:
+            return CameraPose.look_at(camera["eye"], camera["target"])
+        raise ValueError("camera must be a CameraPose or a dict {'eye': [x, y, z], 'target': [x, y, z]} (world, m)")

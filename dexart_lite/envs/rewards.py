@@ -1,0 +1,48 @@
+"""Reward pieces shared by the tasks, as pure functions of a ``State`` (DexArt's numbers).
+
+Each task's ``reward_terms`` assembles its named terms from these; the reward is their sum.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+REACH_CAP = 0.5  # m: the reach term saturates beyond this distance
+REACH_WEIGHT = 0.1  # per m
+CONTACT_BONUS = 0.2  # for a grasp contact
+ARM_CONTACT_COST = 0.1  # per arm link (or once, for the bucket) touching the object
+BONUS_RATE = 1.2  # terminal bonus per remaining step and unit of progress
+
+
+def reach(dist: float) -> float:
+    """Stage 1: -0.1 per metre between palm and handle, capped at 0.5 m."""
+    return -REACH_WEIGHT * min(dist, REACH_CAP)
+
+
+def action_penalty(qvel: np.ndarray) -> float:
+    """0.01 * sum of squared joint speeds (rad/s), each clipped to [-1, 1]."""
+    return 0.01 * float(np.sum(np.clip(qvel, -1.0, 1.0) ** 2))
+
+
+def control_penalty(flange_delta: np.ndarray, commanded_velocity: np.ndarray, control_dt: float) -> float:
+    """1e3 * squared error (m^2) between where the flange went and where the twist asked it to go."""
+    error = np.asarray(flange_delta) - np.asarray(commanded_velocity) * control_dt
+    return 1e3 * float(error @ error)
+
+
+def penalty(s, weight: float) -> float:
+    """The negative penalty term: -weight * (action penalty + control penalty)."""
+    return -weight * (action_penalty(s.robot.qvel) + control_penalty(s.flange_delta, s.commanded_velocity, s.control_dt))
+
+
+def terminal_bonus(s, progress: float) -> float:
+    """Paid once on early success: (horizon - t) * 1.2 * progress."""
+    return (s.horizon - s.t) * BONUS_RATE * progress
+
+
+def reach_stage(s, reach_threshold: float, grasped: bool) -> int:
+    """1 (reach) while the palm is farther than ``reach_threshold`` m from the handle,
+    2 (contact) until ``grasped``, then 3 (manipulate)."""
+    if s.dist > reach_threshold:
+        return 1
+    return 3 if grasped else 2

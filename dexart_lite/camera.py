@@ -138,12 +138,19 @@ class DepthCamera:
             points: (M, 3) float32, world frame, m.
             seg: (M,) int64, PyBullet's ``uid + ((link + 1) << 24)`` of each point.
         """
+        return self.back_project(*self.render_depth())
+
+    def render_depth(self) -> tuple[np.ndarray, np.ndarray]:
+        """TinyRenderer's raw z-buffer (H*W,) in [0, 1] and segmentation (H*W,), row-major."""
         cam = self.intrinsics
         _, _, _, depth, seg = self.sim.c.getCameraImage(
             cam.width, cam.height, viewMatrix=self._view, projectionMatrix=self._proj,
             renderer=ER_TINY_RENDERER, shadow=0, flags=ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
-        depth = np.asarray(depth, dtype=np.float32).reshape(-1)
-        seg = np.asarray(seg, dtype=np.int64).reshape(-1)
+        return np.asarray(depth, dtype=np.float32).reshape(-1), np.asarray(seg, dtype=np.int64).reshape(-1)
+
+    def back_project(self, depth: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World points (M, 3) and segmentation values (M,) of the pixels that hit something."""
+        cam = self.intrinsics
         hit = seg >= 0  # background pixels carry -1
         # Non-linear z-buffer value -> metric depth along the optical axis.
         z = cam.far * cam.near / (cam.far - (cam.far - cam.near) * depth[hit])

@@ -44,7 +44,7 @@ class ArticulatedObjects:
         self._colours: dict[str, list[tuple[int, tuple]]] = {}
         self._pins: dict[str, int] = {}
         for i, info in enumerate(infos):
-            body = sim.load_urdf(info.name, info.urdf_path, fixed_base=info.fixed_base)
+            body = sim.load_urdf(info.name, info.urdf_path, fixed_base=info.fixed_base, inertia_from_file=True)
             if body.joint(info.joint_name) != TASK_JOINT:
                 raise ValueError(f"{info.name}: the task joint {info.joint_name!r} must be joint {TASK_JOINT}")
             for link in [BASE_LINK, *body.joints.values()]:

@@ -71,6 +71,7 @@ class RobotState:
     palm_linvel: np.ndarray  # (3,) m/s
     palm_angvel: np.ndarray  # (3,) rad/s
     flange_pos: np.ndarray  # (3,) m, link6 frame origin
+    flange_quat: np.ndarray  # (4,) xyzw
 
 
 class Robot:
@@ -163,4 +164,4 @@ class Robot:
         q, qd = self.sim.joint_states(self.body, self.joints)
         pos, quat, lin, ang = self.sim.link_frames(self.body, [self.palm, self.flange], velocity=True)
         return RobotState(qpos=q, qvel=qd, palm_pos=pos[0], palm_quat=quat[0], palm_linvel=lin[0],
-                          palm_angvel=ang[0], flange_pos=pos[1])
+                          palm_angvel=ang[0], flange_pos=pos[1], flange_quat=quat[1])

@@ -77,9 +77,16 @@ class BulletSim:
 
     # ----------------------------------------------------------------------------- bodies
     def load_urdf(self, name: str, path: Path | str, position=(0, 0, 0), orientation=(0, 0, 0, 1),
-                  fixed_base: bool = True, self_collision: bool = False) -> Body:
-        """Load a URDF and index its joints and links by name."""
+                  fixed_base: bool = True, self_collision: bool = False, inertia_from_file: bool = False) -> Body:
+        """Load a URDF and index its joints and links by name.
+
+        ``inertia_from_file``: use the URDF's inertia tensors (the generated objects have exact ones);
+        otherwise PyBullet derives them from the collision shapes (right for the xArm, whose file
+        tensors PyBullet rejects as "bad inertia").
+        """
         flags = pybullet.URDF_MAINTAIN_LINK_ORDER
+        if inertia_from_file:
+            flags |= pybullet.URDF_USE_INERTIA_FROM_FILE
         if self_collision:
             # Collide links with each other, but never with any of their ancestors.
             flags |= pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
@@ -184,6 +191,15 @@ class BulletSim:
         for c in self.c.getContactPoints(bodyA=body_a.uid, bodyB=body_b.uid):
             forces[c[3], c[4]] = forces.get((c[3], c[4]), 0.0) + c[9]
         return forces
+
+    def save_state(self) -> int:
+        """Snapshot of every body's state and the contact caches (an in-memory id)."""
+        return self.c.saveState()
+
+    def restore_state(self, state_id: int) -> None:
+        """Back to a snapshot. Restoring the contact caches too is what makes episodes replay
+        bit-for-bit: teleporting bodies alone leaves the solver's warm-start data of the last episode."""
+        self.c.restoreState(stateId=state_id)
 
     def close(self) -> None:
         """Disconnect; safe to call twice."""

@@ -148,6 +148,7 @@ class DexArtEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self._state: State | None = None
         self._obs: dict | None = None
+        self._initial_state = self.sim.save_state()  # every reset starts from here (replayable)
 
     # ------------------------------------------------------------------ task hooks
     def progress(self, s: State) -> float:
@@ -186,6 +187,7 @@ class DexArtEnv(gym.Env):
             name = self.objects.names[int(rng.integers(len(self.objects.names)))]
         check_choice("object", name, self.objects.names)
         info = self.objects.infos[name]
+        self.sim.restore_state(self._initial_state)
         position, yaw = np.add(self.ROBOT_BASE, info.position), info.yaw
         if self.randomize:
             position = position + rng.random(3) * self.RAND_POS

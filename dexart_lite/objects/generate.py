@@ -34,7 +34,7 @@ import numpy as np
 from dexart_lite.objects import bucket, faucet, feasibility, geometry, laptop, placement, toilet
 from dexart_lite.objects.model import CategorySpec, ObjectModel, urdf_text
 
-GENERATOR_VERSION = 1  # bump whenever a generator's output changes for the same parameters
+GENERATOR_VERSION = 2  # bump whenever a generator's output changes for the same parameters
 SPECS: dict[str, CategorySpec] = {"faucet": faucet.SPEC, "bucket": bucket.SPEC, "laptop": laptop.SPEC,
                                   "toilet": toilet.SPEC}
 SPLIT_SIZES = {"faucet": {"seen": 11, "unseen": 7}, "bucket": {"seen": 11, "unseen": 8},
@@ -166,13 +166,20 @@ def _r(x, digits: int = 6):
     return round(float(x), digits) + 0.0
 
 
+def _u(x):
+    """A float (or list of floats) exactly as the URDF writes it."""
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_u(v) for v in x]
+    return float(geometry.fmt(x))
+
+
 def record(draw: Draw, place: placement.Placement) -> dict:
     """The params.json content of an accepted draw (geometry-derived only, no physics results)."""
     m, j = draw.model, draw.model.joint
     links = {}
     for link in (m.body, m.part):
         props = link.mass_properties()
-        links[link.name] = {"mass": _r(props.mass, 5), "density": link.density, "com": _r(props.com),
+        links[link.name] = {"mass": _u(props.mass), "density": link.density, "com": _u(props.com),
                             "volume": _r(props.volume, 9), "pieces": len(link.pieces), "triangles": link.triangles()}
     return {
         "name": draw.name,
@@ -188,9 +195,9 @@ def record(draw: Draw, place: placement.Placement) -> dict:
         "fixed_base": m.fixed_base,
         "body_link": m.body.name,
         "part_link": m.part.name,
-        "joint": {"name": j.name, "index": 0, "origin_xyz": _r(j.xyz), "origin_rpy": _r(j.rpy), "axis": _r(j.axis),
-                  "lower": _r(j.lower), "upper": _r(j.upper), "init": _r(j.init), "target": _r(j.target),
-                  "friction": _r(j.friction)},
+        "joint": {"name": j.name, "index": 0, "origin_xyz": _u(j.xyz), "origin_rpy": _u(j.rpy), "axis": _u(j.axis),
+                  "lower": _u(j.lower), "upper": _u(j.upper), "init": _u(j.init), "target": _u(j.target),
+                  "friction": _u(j.friction)},
         "grasp_point": _r(m.grasp_point),
         "placement": {"position": _r(place.position), "yaw": _r(place.yaw), "reach_margin": place.reach_margin,
                       "grasp_nominal": _r(place.grasp_nominal)},

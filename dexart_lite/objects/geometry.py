@@ -16,13 +16,14 @@ import numpy as np
 import trimesh
 
 # Decimal places written for vertex coordinates (1 micrometre) and significant digits for every
-# other number in the URDF. Fixed formats keep regeneration byte-for-byte identical.
+# other number in the URDF (and in params.json, which repeats the URDF's joint and mass values).
+# Fixed formats keep regeneration byte-for-byte identical.
 VERTEX_DECIMALS = 6
-SIG_DIGITS = 6
+SIG_DIGITS = 7
 
 
 def fmt(x: float) -> str:
-    """A float as a short, stable string (6 significant digits, never ``-0``)."""
+    """A float as a short, stable string (``SIG_DIGITS`` significant digits, never ``-0``)."""
     x = float(x)
     if abs(x) < 1e-12:
         return "0"

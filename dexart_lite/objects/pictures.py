@@ -8,15 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pybullet
+from matplotlib.figure import Figure  # the object API needs no display backend (unlike pyplot)
+from pybullet_utils.bullet_client import BulletClient
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless backend)
-import numpy as np  # noqa: E402
-import pybullet  # noqa: E402
-from pybullet_utils.bullet_client import BulletClient  # noqa: E402
-
-from dexart_lite.objects import ObjectInfo  # noqa: E402
+from dexart_lite.objects import ObjectInfo
 
 VIEW_DIRECTION = np.array([-0.75, 0.85, 0.65])  # from the object toward the camera (unnormalised)
 CAMERA_DISTANCE = {"faucet": 0.55, "bucket": 0.8, "laptop": 0.75, "toilet": 1.35}  # m, same per category
@@ -49,7 +46,8 @@ def show(info: ObjectInfo, out: Path, size: int = 256) -> list[float]:
         angles = [-1.5, 0.0, 0.8, 1.5]
     else:
         angles = sorted({info.joint_lower, info.joint_init, info.joint_target, info.joint_upper})
-    fig, axes = plt.subplots(1, len(angles), figsize=(3 * len(angles), 3.3))
+    fig = Figure(figsize=(3 * len(angles), 3.3))
+    axes = fig.subplots(1, len(angles))
     for ax, q in zip(np.atleast_1d(axes), angles):
         ax.imshow(render(info, q, size))
         ax.set_title(f"q = {q:.2f} rad", fontsize=9)
@@ -58,15 +56,14 @@ def show(info: ObjectInfo, out: Path, size: int = 256) -> list[float]:
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=80)
-    plt.close(fig)
     return angles
 
 
 def montage(category: str, infos: list[ObjectInfo], out: Path, size: int = 200, columns: int = 6) -> None:
     """One tile per object (seen first, then unseen), all at ``MONTAGE_ANGLE[category]``."""
     rows = -(-len(infos) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(2.2 * columns, 2.4 * rows))
-    axes = np.atleast_2d(axes)
+    fig = Figure(figsize=(2.2 * columns, 2.4 * rows))
+    axes = np.atleast_2d(fig.subplots(rows, columns))
     for ax in axes.flat:
         ax.axis("off")
     for ax, info in zip(axes.flat, infos):
@@ -79,4 +76,3 @@ def montage(category: str, infos: list[ObjectInfo], out: Path, size: int = 200, 
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=80)
-    plt.close(fig)

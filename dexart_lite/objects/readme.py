@@ -85,7 +85,7 @@ def readme_text(root: Path) -> str:
         "urdf/objects/checks.json   physics-check measurements of every object",
         "```",
         "",
-        f"* `<name>` = `<category>_` + the first 10 hex digits of the SHA-1 of the canonical parameters",
+        "* `<name>` = `<category>_` + the first 10 hex digits of the SHA-1 of the canonical parameters",
         f"  (category, template, parameters, generator version {GENERATOR_VERSION}). PyBullet caches URDFs and",
         "  meshes by path, so a folder is never rewritten with other content: new parameters, new name.",
         "* Seeds are fixed per (category, split, index, attempt) (SHA-256 of a string, not Python's `hash`);",
@@ -227,7 +227,7 @@ def readme_text(root: Path) -> str:
         "2. Driven by a position motor capped at joint friction + "
         + ", ".join(f"{v:g} ({c})" for c, v in DRIVE_TORQUE.items()) + " N*m, the joint reaches the",
         "   success threshold in 2 s: faucet abs(q) > 1.5 in both directions; laptop / toilet q >= target; bucket",
-        f"   bail within 0.3 * pi/2 of upright. Bucket also: a `JOINT_POINT2POINT` constraint at the bail apex",
+        "   bail within 0.3 * pi/2 of upright. Bucket also: a `JOINT_POINT2POINT` constraint at the bail apex",
         f"   (max {LIFT_FORCE:g} N) swings the bail upright (1 s), pulls 0.5 m up (2 s) and holds (1 s): the body must",
         f"   rise > {BUCKET_LIFT} m with the bail within 0.3 * pi/2 of upright (DexArt's success).",
         "3. Released at the reset angle with the friction motor on, nothing moves for 2 s (joint < 0.01 rad,",

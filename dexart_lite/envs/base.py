@@ -38,6 +38,7 @@ CONTACT_IMPULSE = 0.01  # N*s summed over a link pair's contact points (DexArt),
 MAX_JOINT_SPEED = 50.0  # rad/s; faster means the simulation blew up
 MAX_OBJECT_SPEED = 10.0  # m/s
 TABLE_HALF_EXTENTS = (0.65, 0.65, 0.025)  # m, top surface at z = 0
+TABLE_RGBA, PEDESTAL_RGBA = (0.8, 0.75, 0.65, 1.0), (0.5, 0.5, 0.5, 1.0)
 VIEWER_SIZE = (320, 240)  # px, env.render()
 
 
@@ -124,9 +125,13 @@ class DexArtEnv(gym.Env):
         self.render_mode, self.randomize, self.frame_skip = render_mode, randomize, int(frame_skip)
         self.control_dt = dt * frame_skip
         self.sim = BulletSim(dt=dt, solver_iterations=solver_iterations)
-        self.sim.create_box("table", TABLE_HALF_EXTENTS, (0, 0, -TABLE_HALF_EXTENTS[2]))
+        camera_pose = self._camera_pose(camera)
+        self.scenery = [self.sim.create_box("table", TABLE_HALF_EXTENTS, (0, 0, -TABLE_HALF_EXTENTS[2]),
+                                            rgba=TABLE_RGBA)]
         if self.PEDESTAL is not None:
-            self.sim.create_box("pedestal", self.PEDESTAL[1], self.PEDESTAL[0], rgba=(0.5, 0.5, 0.5, 1))
+            self.scenery.append(self.sim.create_box("pedestal", self.PEDESTAL[1], self.PEDESTAL[0], rgba=PEDESTAL_RGBA))
+        if not self._scenery_can_occlude(camera_pose):
+            self._show_scenery(False)  # cropped away and unable to hide anything: skip its render cost
         self.robot = Robot(self.sim, self.ROBOT_BASE, control_dt=self.control_dt)
         self.labels = pc.LabelTable()
         for name, link in self.robot.body.links.items():
@@ -134,7 +139,7 @@ class DexArtEnv(gym.Env):
         self.objects = ArticulatedObjects(self.sim, infos, self.labels)
         self.sensor_config = SensorConfig(num_points=num_points, imagination=imagination, point_noise=point_noise,
                                           camera_noise=camera_noise)
-        self.sensor = PointCloudSensor(self.sim, self.sensor_config, self._camera_pose(camera), self.CROP,
+        self.sensor = PointCloudSensor(self.sim, self.sensor_config, camera_pose, self.CROP,
                                        self.ROBOT_BASE, self.labels, self.robot.body)
         self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}
         self._arm_links = set(self.robot.arm_links)
@@ -227,18 +232,22 @@ class DexArtEnv(gym.Env):
         if self.render_mode != "rgb_array":
             return None
         camera = self.sensor.camera
-        pose = camera.pose
+        pose, hidden = camera.pose, self._scenery_hidden
         camera.set_pose(self.VIEWER)
+        self._show_scenery(True)
         try:
             return camera.render_rgb(*VIEWER_SIZE)
         finally:
             camera.set_pose(pose)
+            self._show_scenery(not hidden)
 
     def close(self):
         if getattr(self, "sim", None) is not None:
             self.sim.close()
 
     # ------------------------------------------------------------------ the loop's pieces
+    _scenery_hidden = False
+
     def _check_action(self, action) -> np.ndarray:
         action = np.asarray(action, dtype=np.float64)
         if action.shape != (ACTION_DIM,):
@@ -287,6 +296,26 @@ class DexArtEnv(gym.Env):
                                  [s.t / s.horizon]])
         return {"point_cloud": cloud.points, "imagined_mask": cloud.imagined.astype(np.int8),
                 "state": vector.astype(np.float32)}
+
+    def _scenery_can_occlude(self, pose: CameraPose) -> bool:
+        """Whether the table or the pedestal could hide a point of the crop box from this camera.
+
+        Both lie outside the crop box (below zmin; behind xmin), so they never appear in the cloud.
+        A segment from the camera to a point in the box stays above the table top (z = 0) when the
+        camera is above it, and stays in front of the pedestal (x >= xmin in the robot frame) when
+        the camera is; then the scenery cannot occlude anything and the depth camera may skip it
+        (TinyRenderer's time follows what it draws). The perturbation of a few cm keeps this true.
+        """
+        position = np.asarray(pose.position, dtype=float)
+        margin = 0.1  # m, covers the per-reset camera perturbation (1.5 cm std)
+        above_table = position[2] > margin
+        before_pedestal = self.PEDESTAL is None or position[0] - self.ROBOT_BASE[0] > self.CROP[0] + margin
+        return not (above_table and before_pedestal)
+
+    def _show_scenery(self, visible: bool) -> None:
+        self._scenery_hidden = not visible
+        for body, rgba in zip(self.scenery, (TABLE_RGBA, PEDESTAL_RGBA)):
+            self.sim.c.changeVisualShape(body.uid, -1, rgbaColor=rgba if visible else (0, 0, 0, 0))
 
     def _camera_pose(self, camera) -> CameraPose:
         if camera is None:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexart_lite.objects import CATEGORIES, HALF_SIZES, ROBOT_BASE, all_objects
+from dexart_lite.objects import CATEGORIES, HALF_SIZES, ROBOT_BASE, all_objects, geometry
 from dexart_lite.objects import report as split_report
 from dexart_lite.objects.feasibility import BUCKET_LIFT, DRIVE_TORQUE, LIFT_FORCE
 from dexart_lite.objects.generate import CHECKS_FILE, DUPLICATE_EPS, GENERATOR_VERSION, SPECS, SPLIT_SIZES
@@ -40,6 +40,14 @@ def _records(root: Path) -> list[dict]:
             recs = [json.loads(p.read_text()) for p in sorted((root / category / split).glob("*/params.json"))]
             out += sorted(recs, key=lambda r: r["index"])
     return out
+
+
+def _grasp_from_shoulder(r: dict, q: float) -> float:
+    """Distance (m) from the shoulder to the grasp point at joint angle ``q``, nominal placement."""
+    j = r["joint"]
+    rotation = geometry.rpy_matrix(j["origin_rpy"]) @ geometry.axis_rotation(j["axis"], q)
+    point = np.add(r["placement"]["position"], np.add(j["origin_xyz"], rotation @ np.asarray(r["grasp_point"])))
+    return float(np.linalg.norm(point - [0.0, 0.0, SHOULDER_HEIGHT]))
 
 
 def _range(values, digits: int = 3) -> str:
@@ -152,7 +160,6 @@ def readme_text(root: Path) -> str:
         "|---|---|---|---|",
         *[f"| {c} | {tuple(ROBOT_BASE[c])} | {RAND_POS[c]:g} | {RAND_YAW_DEG[c]:g} |" for c in CATEGORIES],
         "",
-        "",
         "* z = -robot_base_z: the object stands on the table (top at world z = 0).",
         "* y = -r / 2, so the one-sided y noise is centred on the robot's axis.",
         "* x maximises the worst-case reach margin of the grasp point at the reset angle, over the corners of",
@@ -182,6 +189,12 @@ def readme_text(root: Path) -> str:
         "the horizontal distance from the root to the lid front (here "
         + _range([float(np.hypot(*np.subtract(r["placement"]["grasp_nominal"], r["placement"]["position"])[:2]))
                   for r in by_cat["toilet"]]) + " m) is what limits it.",
+        "",
+        "The check uses the reset angle, where the hand must first get to. Opened to the target, the laptop's",
+        "and toilet's grasp points rise above their hinges, "
+        + " and ".join(f"{c} {_range([_grasp_from_shoulder(r, r['joint']['target']) for r in by_cat[c]])} m"
+                       for c in ("laptop", "toilet"))
+        + f" from the shoulder at the nominal pose (reach {REACH} m): the hand can push the lid lower down instead.",
         "",
         "## Templates and parameters",
         "",

@@ -1,0 +1,108 @@
+"""The PPO actor-critic of DexArt, as a torchrl ``ActorValueOperator`` with a shared trunk.
+
+    point_cloud (..., 608, 3) --PointNetEncoder--> (..., 256) --+
+                                                                 +--> hidden (..., 320)
+    observation (..., 32)  --Linear-ReLU-Linear--> (..., 64) ---+
+    hidden --[64, 64] ReLU--> Linear --> loc (..., 22); scale = exp(log_std), log_std a free parameter
+    hidden --[64, 64] ReLU--> Linear --> state_value (..., 1)
+
+This is SB3's ``ActorCriticPolicy`` with DexArt's ``PointNetImaginationExtractorGP`` (608 xyz
+points: 512 observed + 96 imagined; the imagined-point mask is not an input) and its
+initialisation: orthogonal weights with gain sqrt(2) for the trunk and the hidden layers, 0.01 for
+the action layer and 1 for the value layer, zero biases; then the PointNet is re-initialised with
+its own truncated normal (std 0.02). The action distribution is an unsquashed diagonal Gaussian
+with state-independent log-std starting at 0; the env clips actions to [-1, 1], as SB3 does.
+
+The trunk runs once per minibatch in the PPO loss: the loss gets ``get_value_head()`` as critic
+and reuses the ``hidden`` the actor wrote (torchrl-0.14 notes, section 0.5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule
+from torch import nn
+from torchrl.data import Bounded
+from torchrl.envs.utils import ExplorationType
+from torchrl.modules import ActorValueOperator, IndependentNormal, ProbabilisticActor, ValueOperator
+
+from dexart_lite.models.pointnet import FEATURE_DIM, PointNetEncoder
+
+POINTS_KEY = "point_cloud"  # (..., N, 3) float32, robot-base frame, m
+STATE_KEY = "observation"  # the env's "state" vector; torchrl's GymWrapper renames "state" to "observation"
+HIDDEN_KEY = "hidden"  # (..., 320) trunk output
+STATE_HIDDEN = 64
+HEAD_HIDDEN = (64, 64)
+
+
+class Trunk(nn.Module):
+    """PointNet on the cloud, concatenated with an MLP on the state vector."""
+
+    def __init__(self, state_dim: int, encoder_size: str = "small"):
+        super().__init__()
+        self.encoder = PointNetEncoder(encoder_size)
+        self.state_mlp = nn.Sequential(nn.Linear(state_dim, STATE_HIDDEN), nn.ReLU(),
+                                       nn.Linear(STATE_HIDDEN, STATE_HIDDEN))
+        self.out_dim = FEATURE_DIM + STATE_HIDDEN
+
+    def forward(self, points: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        """points (..., N, 3), state (..., D) -> (..., 320)."""
+        return torch.cat([self.encoder(points), self.state_mlp(state)], dim=-1)
+
+
+def mlp(in_dim: int, hidden: tuple[int, ...], out_dim: int) -> nn.Sequential:
+    """Linear-ReLU layers of widths ``hidden``, then a final Linear to ``out_dim``."""
+    layers: list[nn.Module] = []
+    for width in hidden:
+        layers += [nn.Linear(in_dim, width), nn.ReLU()]
+        in_dim = width
+    return nn.Sequential(*layers, nn.Linear(in_dim, out_dim))
+
+
+def orthogonal_init(module: nn.Module, gain: float) -> None:
+    """SB3's ``init_weights``: orthogonal weights with ``gain``, zero biases, on every Linear."""
+    for layer in module.modules():
+        if isinstance(layer, nn.Linear):
+            nn.init.orthogonal_(layer.weight, gain=gain)
+            nn.init.zeros_(layer.bias)
+
+
+def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "small") -> ActorValueOperator:
+    """The shared-trunk actor-critic.
+
+    ``get_policy_operator()`` goes to the collector and the loss's actor; ``get_value_operator()``
+    (trunk + value head) to GAE; ``get_value_head()`` to the loss's critic.
+    """
+    trunk = Trunk(state_dim, encoder)
+    policy_net = mlp(trunk.out_dim, HEAD_HIDDEN, action_dim)
+    value_net = mlp(trunk.out_dim, HEAD_HIDDEN, 1)
+    orthogonal_init(trunk, math.sqrt(2))
+    orthogonal_init(policy_net[:-1], math.sqrt(2))
+    orthogonal_init(value_net[:-1], math.sqrt(2))
+    orthogonal_init(policy_net[-1], 0.01)
+    orthogonal_init(value_net[-1], 1.0)
+    trunk.encoder.reset_parameters()  # the PointNet keeps its own init (pretrained weights load over it)
+
+    trunk_module = TensorDictModule(trunk, in_keys=[POINTS_KEY, STATE_KEY], out_keys=[HIDDEN_KEY])
+    loc_scale = TensorDictModule(nn.Sequential(policy_net, AddStateIndependentNormalScale(action_dim, init_value=0.0)),
+                                 in_keys=[HIDDEN_KEY], out_keys=["loc", "scale"])
+    action_spec = Bounded(low=-1.0, high=1.0, shape=(action_dim,), dtype=torch.float32)
+    policy_head = ProbabilisticActor(loc_scale, in_keys=["loc", "scale"], out_keys=["action"], spec=action_spec,
+                                     distribution_class=IndependentNormal, distribution_kwargs={"tanh_loc": False},
+                                     return_log_prob=True,  # writes "action_log_prob"
+                                     default_interaction_type=ExplorationType.RANDOM)  # eval: set DETERMINISTIC
+    value_head = ValueOperator(value_net, in_keys=[HIDDEN_KEY])  # writes "state_value" (..., 1)
+    return ActorValueOperator(trunk_module, policy_head, value_head)
+
+
+def encoder_of(actor_critic: ActorValueOperator) -> PointNetEncoder:
+    """The ``PointNetEncoder`` inside the trunk of ``actor_critic``."""
+    return actor_critic.module[0].module.encoder  # module[0] is the trunk TensorDictModule
+
+
+def action_log_std(actor_critic: ActorValueOperator) -> torch.Tensor:
+    """The state-independent log-std of the action distribution, (action_dim,)."""
+    scale = next(m for m in actor_critic.modules() if isinstance(m, AddStateIndependentNormalScale))
+    return scale.state_independent_scale.detach()

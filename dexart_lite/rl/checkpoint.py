@@ -1,0 +1,62 @@
+"""PPO checkpoints: one ``torch.save`` file holding the config, the network sizes, the weights, the
+optimizer, the frame count and the learning-curve history. Missing or unreadable files raise a
+one-line ``FileNotFoundError`` / ``ValueError``; a file whose weights do not fit the network it
+describes raises ``ValueError`` too.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+from torchrl.modules import ActorValueOperator
+
+from dexart_lite.models.actor_critic import make_actor_critic
+
+FILE_FORMAT = "dexart_lite.ppo"
+FILE_VERSION = 1
+REQUIRED = ("config", "dims", "model", "frames", "batches", "history")
+
+
+def save_checkpoint(path: str | os.PathLike, payload: dict) -> Path:
+    """Write ``payload`` (see ``REQUIRED``) atomically: a crash mid-write leaves the old file."""
+    missing = [k for k in REQUIRED if k not in payload]
+    if missing:
+        raise ValueError(f"checkpoint payload lacks {missing}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save({"format": FILE_FORMAT, "version": FILE_VERSION, **payload}, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def load_checkpoint(path: str | os.PathLike) -> dict:
+    """The payload of a checkpoint written by ``save_checkpoint``."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint not found: {path}")
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # truncated zip, random bytes, a pickle of something else...
+        detail = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise ValueError(f"{path} is not a readable checkpoint ({detail[:200]})") from None
+    if not isinstance(payload, dict) or payload.get("format") != FILE_FORMAT:
+        raise ValueError(f"{path} is not a dexart_lite PPO checkpoint (written by `dexart-lite train`)")
+    missing = [k for k in REQUIRED if k not in payload]
+    if missing:
+        raise ValueError(f"{path} is an incomplete PPO checkpoint: it lacks {missing}")
+    return payload
+
+
+def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "checkpoint") -> ActorValueOperator:
+    """The actor-critic described by ``payload["dims"]`` with its weights loaded strictly."""
+    dims, cfg = payload["dims"], payload["config"]
+    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg["encoder"])
+    try:
+        actor_critic.load_state_dict(payload["model"], strict=True)
+    except RuntimeError as err:
+        detail = " ".join(str(err).split())
+        raise ValueError(f"{path}: weights do not fit a {cfg['encoder']!r} actor-critic ({detail[:300]})") from None
+    return actor_critic

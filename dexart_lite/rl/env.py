@@ -1,0 +1,87 @@
+"""The torchrl view of a DexArt task: ``make_env(task, **kwargs)``.
+
+    GymWrapper(gym.make("DexArtLite/Laptop-v0", point_noise=True, camera_noise=True, ...))
+      + an info reader: success, stage, progress, episode_success, episode_max_stage
+      + InitTracker ("is_init"), StepCounter ("step_count"), RewardSum ("episode_reward")
+
+Tensordict keys of one step (``env.rollout`` / collector batches; ``N`` = 608 by default):
+
+    point_cloud (N, 3) float32   observed + imagined points, robot-base frame, m
+    imagined_mask (N,) int8      1 for the imagined hand points
+    observation (32,) float32    the env's "state" vector (GymWrapper renames "state" to "observation")
+    action (22,)                 in [-1, 1] after the env's clip
+    ("next", "reward") (1,)      ("next", "done" / "terminated" / "truncated") (1,) bool
+    ("next", "success") bool     ("next", "stage") int64 in 1..3    ("next", "progress") float32
+    ("next", "episode_success")  success at any step of the episode so far (DexArt's metric)
+    ("next", "episode_max_stage") the highest stage reached so far
+    ("next", "episode_reward") (1,) return so far
+
+As in DexArt, training and evaluation both use point-cloud noise and camera-pose noise.
+``make_env`` is a module-level function, so ``functools.partial(make_env, task, ...)`` can be sent to
+spawned worker processes.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import torch
+from torchrl.data import Categorical, Unbounded
+from torchrl.envs import Compose, GymWrapper, InitTracker, RewardSum, StepCounter, TransformedEnv
+from torchrl.envs.libs.gym import default_info_dict_reader
+
+from dexart_lite.envs import make as make_gym_env
+
+# info keys copied into the tensordict, with their specs (one value per step)
+INFO_SPECS = {
+    "success": Categorical(2, shape=(), dtype=torch.bool),
+    "stage": Categorical(4, shape=(), dtype=torch.int64),  # 1 reach, 2 contact, 3 manipulate
+    "progress": Unbounded(shape=(), dtype=torch.float32),
+    "episode_success": Categorical(2, shape=(), dtype=torch.bool),
+    "episode_max_stage": Categorical(4, shape=(), dtype=torch.int64),
+}
+NUMPY_DTYPES = {torch.bool: np.bool_, torch.int64: np.int64, torch.float32: np.float32}
+
+
+class EpisodeInfo(gym.Wrapper):
+    """Adds ``info["episode_success"]`` (success at any step so far) and ``info["episode_max_stage"]``,
+    stores the ``INFO_SPECS`` entries as numpy scalars (what torchrl's info reader expects) and
+    returns a new observation dict at every call.
+
+    DexArt counts an episode as a success if it succeeds at any step; a per-step flag read from a
+    training batch cannot tell that for episodes that straddle two batches.
+    """
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._success, self._max_stage = bool(info["success"]), int(info["stage"])
+        return dict(obs), self._add(info)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._success = self._success or bool(info["success"])
+        self._max_stage = max(self._max_stage, int(info["stage"]))
+        # a fresh dict: torchrl's GymWrapper edits the dict it gets (renames "state", adds "reward"),
+        # and the env hands back the same dict again when a step is cut short by sim_unstable
+        return dict(obs), reward, terminated, truncated, self._add(info)
+
+    def _add(self, info: dict) -> dict:
+        info["episode_success"], info["episode_max_stage"] = self._success, self._max_stage
+        for key, spec in INFO_SPECS.items():  # torchrl's default_info_dict_reader expects numpy values
+            info[key] = np.asarray(info[key], dtype=NUMPY_DTYPES[spec.dtype])
+        return info
+
+
+def make_env(task: str, *, point_noise: bool = True, camera_noise: bool = True, **env_kwargs) -> TransformedEnv:
+    """The training / evaluation env of ``task``; ``env_kwargs`` go to the gymnasium env
+    (split, object_names, num_points, imagination, randomize, render_mode, ...)."""
+    gym_env = EpisodeInfo(make_gym_env(task, point_noise=point_noise, camera_noise=camera_noise, **env_kwargs))
+    env = GymWrapper(gym_env)
+    env.set_info_dict_reader(default_info_dict_reader(list(INFO_SPECS), spec=dict(INFO_SPECS)))
+    return TransformedEnv(env, Compose(InitTracker(), StepCounter(), RewardSum()))
+
+
+def env_dims(env) -> tuple[int, int, int]:
+    """``(num_points, state_dim, action_dim)`` of a torchrl env from ``make_env``."""
+    obs = env.observation_spec
+    return obs["point_cloud"].shape[-2], obs["observation"].shape[-1], env.action_spec.shape[-1]

@@ -1,0 +1,152 @@
+"""Evaluate a PPO policy on the seen or unseen objects of a task, as DexArt does.
+
+    dexart-lite eval --ckpt runs/laptop/checkpoint.pt --split unseen --episodes-per-object 10 --seed 100 --json out.json
+
+Protocol (DexArt ``examples/evaluate_policy.py``): deterministic actions (the Gaussian's mean);
+the env keeps its point-cloud noise, camera-pose noise and object-pose randomisation; rounds of one
+episode per object, each object chosen explicitly with ``reset(options={"object": name})``; an
+episode is a success if it succeeds at any step. Reported per object and overall: success rate,
+mean highest stage reached (1 reach, 2 contact, 3 manipulate) and mean return. The env RNG is
+seeded once with ``--seed``, so a run is reproducible.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+from tensordict import TensorDict
+from torchrl.envs import ExplorationType, set_exploration_type
+from torchrl.modules import ActorValueOperator
+
+from dexart_lite import objects as objects_lib
+from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY
+from dexart_lite.registration import HORIZON, TASKS
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+from dexart_lite.rl.env import make_env
+from dexart_lite.utils import check_choice
+
+SPLITS = ("seen", "unseen", "seen_half")
+
+
+def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", episodes_per_object: int = 10,
+             seed: int = 100, env_kwargs: dict | None = None) -> dict:
+    """Success per object and overall; see the module docstring. ``env_kwargs`` go to ``make_env``."""
+    check_choice("split", split, SPLITS)
+    if episodes_per_object < 1:
+        raise ValueError(f"episodes_per_object must be >= 1, got {episodes_per_object}")
+    names = [info.name for info in objects_lib.list_objects(task, split)]
+    env = make_env(task, split=split, **(env_kwargs or {}))
+    env.set_seed(seed)
+    policy = actor_critic.get_policy_operator()
+    episodes = {name: [] for name in names}
+    start = time.perf_counter()
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(episodes_per_object):
+            for name in names:
+                reset = env.reset(options={"object": name})
+                rollout = env.rollout(HORIZON, policy, auto_reset=False, tensordict=reset, break_when_any_done=True)
+                last = rollout[-1]["next"]
+                episodes[name].append({"success": bool(last["episode_success"]),
+                                       "max_stage": int(last["episode_max_stage"]),
+                                       "return": float(last["episode_reward"]), "steps": int(last["step_count"])})
+    env.close()
+    per_object = {name: summarize(eps) for name, eps in episodes.items()}
+    every = [ep for eps in episodes.values() for ep in eps]
+    return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
+            **summarize(every), "objects": per_object, "wall_time_s": round(time.perf_counter() - start, 1)}
+
+
+def summarize(episodes: list[dict]) -> dict:
+    return {"success_rate": float(np.mean([e["success"] for e in episodes])),
+            "mean_max_stage": float(np.mean([e["max_stage"] for e in episodes])),
+            "mean_return": float(np.mean([e["return"] for e in episodes])),
+            "mean_steps": float(np.mean([e["steps"] for e in episodes])), "episodes": len(episodes)}
+
+
+def markdown_table(results: list[dict]) -> str:
+    """One row per object and an overall row per result of ``evaluate``."""
+    lines = ["| split | object | success | mean max stage | mean return | episodes |", "|---|---|---|---|---|---|"]
+    for res in results:
+        for name, r in res["objects"].items():
+            lines.append(f"| {res['split']} | {name} | {r['success_rate']:.2f} | {r['mean_max_stage']:.2f} | "
+                         f"{r['mean_return']:.1f} | {r['episodes']} |")
+        lines.append(f"| {res['split']} | **all** | **{res['success_rate']:.2f}** | {res['mean_max_stage']:.2f} | "
+                     f"{res['mean_return']:.1f} | {res['episodes']} |")
+    return "\n".join(lines)
+
+
+def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.ndarray]:
+    """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1]."""
+    policy = actor_critic.get_policy_operator()
+
+    def act(obs: dict) -> np.ndarray:
+        td = TensorDict({POINTS_KEY: torch.as_tensor(obs["point_cloud"]), STATE_KEY: torch.as_tensor(obs["state"])}, [])
+        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+            return policy(td)["action"].clamp(-1.0, 1.0).numpy()
+
+    return act
+
+
+def load_policy(path: str | Path, env=None) -> Callable[[dict], np.ndarray]:
+    """The deterministic policy of a checkpoint, for a gymnasium env (used by ``dexart-lite render``)."""
+    payload = load_checkpoint(path)
+    if env is not None:
+        state_dim = env.observation_space["state"].shape[0]
+        if state_dim != payload["dims"]["state_dim"]:
+            raise ValueError(f"{path} was trained on {payload['config']['task']} (state of "
+                             f"{payload['dims']['state_dim']}); this env's state has {state_dim} entries")
+    return policy_function(actor_critic_from_checkpoint(payload, path))
+
+
+def record_gif(actor_critic: ActorValueOperator, task: str, path: str | Path, split: str = "seen",
+               object_name: str | None = None, seed: int = 100, env_kwargs: dict | None = None) -> dict:
+    """Render one deterministic evaluation episode to a GIF; returns its summary."""
+    from dexart_lite import render
+    from dexart_lite.envs import make as make_gym_env
+
+    env = make_gym_env(task, split=split, render_mode="rgb_array", point_noise=True, camera_noise=True,
+                       **(env_kwargs or {}))
+    options = {"object": object_name} if object_name else None
+    frames, summary = render.record_episode(env, policy_function(actor_critic), seed=seed, options=options)
+    env.close()
+    render.save_gif(frames, path)
+    return {**summary, "path": str(path)}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--ckpt", type=Path, required=True, help="checkpoint written by `dexart-lite train`")
+    parser.add_argument("--split", default="seen", help=f"one of {', '.join(SPLITS)}")
+    parser.add_argument("--episodes-per-object", type=int, default=10, help="DexArt uses 100")
+    parser.add_argument("--seed", type=int, default=100, help="env seed (DexArt: 100)")
+    parser.add_argument("--json", type=Path, help="write the results here")
+    parser.add_argument("--gif", type=Path, help="also save one evaluation episode as a GIF")
+
+
+def run(args: argparse.Namespace) -> int:
+    check_choice("split", args.split, SPLITS)
+    payload = load_checkpoint(args.ckpt)
+    actor_critic = actor_critic_from_checkpoint(payload, args.ckpt)
+    cfg = payload["config"]
+    check_choice("task", cfg["task"], TASKS)
+    env_kwargs = {"num_points": cfg["num_points"]}
+    if cfg.get("max_episode_steps"):
+        env_kwargs["max_episode_steps"] = cfg["max_episode_steps"]
+    result = evaluate(actor_critic, cfg["task"], args.split, args.episodes_per_object, args.seed, env_kwargs)
+    result.update(checkpoint=str(args.ckpt), frames=payload["frames"])
+    print(f"{cfg['task']} {args.split}: {payload['frames']} training frames, {result['episodes']} episodes, "
+          f"{result['wall_time_s']} s")
+    print(markdown_table([result]))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=2))
+        print(f"wrote {args.json}")
+    if args.gif:
+        gif = record_gif(actor_critic, cfg["task"], args.gif, args.split, seed=args.seed, env_kwargs=env_kwargs)
+        print(f"wrote {args.gif} ({gif['object_name']}, success {gif['success']})")
+    return 0

@@ -1,0 +1,350 @@
+"""Point-cloud PPO with torchrl: ``PPOConfig`` and ``train(cfg)``.
+
+    dexart-lite train --task laptop --encoder small --frames 1000000 --workers 2 --out runs/laptop
+    dexart-lite train --task laptop --preset cpu --frames 60000 --out runs/laptop_cpu
+
+``train`` reads top to bottom: env factory and actor-critic -> collector -> GAE -> ClipPPOLoss ->
+the minibatch loop -> logging -> checkpoint; then the evaluation on seen and unseen objects and
+``report.md``. The defaults of ``PPOConfig`` are DexArt's PPO settings (``preset="faithful"``);
+``PRESETS["cpu"]`` is the measured cheaper variant used by the demo (see ``PRESETS``).
+
+Collection (``--backend``): ``process`` runs ``MultiSyncCollector`` with ``--workers`` spawned
+processes (an in-process ``Collector`` for 0 or 1 worker); ``distributed`` hands it to torchrl's
+``DistributedCollector`` (torch.distributed, gloo; here launched with the ``mp`` launcher on one
+machine: see that class for SLURM via submitit); ``ray`` to torchrl's ``RayCollector``, an
+optional extra::
+
+    pip install ".[distributed]"            # installs ray
+    ray start --head                         # on the head node; `ray start --address=HEAD:6379` on the others
+    dexart-lite train --backend ray --ray-address auto --workers 8 ...
+
+Everything is synchronous, as in DexArt's SB3: collect a batch with the current weights, update,
+push the weights to the collectors, collect again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib.util
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field, fields
+from functools import partial
+from pathlib import Path
+
+import torch
+from tqdm import tqdm
+
+from dexart_lite import objects as objects_lib
+from dexart_lite.models.actor_critic import action_log_std, encoder_of, make_actor_critic
+from dexart_lite.models.pointnet import ENCODER_SIZES, load_encoder
+from dexart_lite.registration import TASKS
+from dexart_lite.rl.checkpoint import load_checkpoint, save_checkpoint
+from dexart_lite.rl.env import env_dims, make_env
+from dexart_lite.utils import check_choice
+
+BACKENDS = ("process", "distributed", "ray")
+CHECKPOINT = "checkpoint.pt"
+LOSS_KEYS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction",
+             "explained_variance")
+# what the loss reads from a batch; the rest (next observations, info) is dropped before the epochs
+BATCH_KEYS = ("point_cloud", "observation", "action", "action_log_prob", "advantage", "value_target")
+
+
+@dataclass
+class PPOConfig:
+    """One training run. Defaults = DexArt's PPO (``examples/train.py`` + SB3 PPO defaults)."""
+
+    task: str = field(default="laptop", metadata={"help": f"one of {', '.join(TASKS)}"})
+    encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large"})
+    frames: int = field(default=1_000_000, metadata={"help": "total env frames (DexArt: ~15M on Laptop)"})
+    frames_per_batch: int = field(default=20_000, metadata={"help": "frames collected per PPO update (DexArt: 10 envs x 2000)"})
+    workers: int = field(default=2, metadata={"help": "collector processes (0 or 1: collect in this process)"})
+    backend: str = field(default="process", metadata={"help": "process, distributed (torch.distributed) or ray"})
+    lr: float = field(default=1e-4, metadata={"help": "Adam learning rate, constant"})
+    gamma: float = 0.99
+    lmbda: float = field(default=0.95, metadata={"help": "GAE lambda"})
+    clip_epsilon: float = 0.2
+    epochs: int = field(default=10, metadata={"help": "passes over each batch"})
+    minibatch: int = 500
+    vf_coef: float = field(default=0.5, metadata={"help": "value-loss coefficient"})
+    entropy_coef: float = 0.0
+    max_grad_norm: float = 0.5
+    adam_eps: float = 1e-5
+    normalize_advantage: bool = field(default=True, metadata={"help": "per minibatch, as SB3"})
+    split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
+    num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
+    max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250); for quick tests"})
+    seed: int = 0
+    out: str = field(default="runs/ppo", metadata={"help": "output folder (checkpoint, logs, report)"})
+    checkpoint_every: int = field(default=5, metadata={"help": "save a checkpoint every N batches"})
+    resume: bool = field(default=False, metadata={"help": "continue the run in --out from its checkpoint"})
+    pretrained: str | None = field(default=None, metadata={"help": "encoder file (save_encoder) loaded strictly into the trunk"})
+    freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
+    eval_episodes: int = field(default=10, metadata={"help": "evaluation episodes per object at the end (0: none)"})
+    eval_seed: int = 100
+    gif: bool = field(default=False, metadata={"help": "save a GIF of one evaluation episode"})
+    threads: int = field(default=0, metadata={"help": "torch threads of the learner (0: all cores)"})
+    tcp_port: int = field(default=10123, metadata={"help": "distributed backend: rendezvous port on the master"})
+    ray_address: str | None = field(default=None, metadata={"help": "ray backend: cluster address (None: start a local Ray)"})
+    progress: bool = field(default=True, metadata={"help": "show a progress bar"})
+
+    def env_kwargs(self) -> dict:
+        """Keyword arguments of the env that the training, evaluation and GIF envs share."""
+        kwargs = {"num_points": self.num_points}
+        if self.max_episode_steps:
+            kwargs["max_episode_steps"] = self.max_episode_steps
+        return kwargs
+
+
+# Named presets: the fields they change. Measured in benchmarks/bench_training.py (see README there).
+PRESETS: dict[str, dict] = {
+    "faithful": {},
+    # Same algorithm, 5x smaller batches (4k frames: 2 workers x 2000 steps, 8 full episodes) and 5 epochs:
+    # a PPO update every ~20 s instead of every ~3 min, and half the gradient steps per frame.
+    "cpu": {"frames_per_batch": 4000, "epochs": 5},
+}
+
+
+def preset(name: str, **overrides) -> PPOConfig:
+    """``PPOConfig`` of a named preset, with ``overrides`` applied."""
+    check_choice("preset", name, PRESETS)
+    return dataclasses.replace(PPOConfig(), **{**PRESETS[name], **overrides})
+
+
+def validate(cfg: PPOConfig) -> None:
+    check_choice("task", cfg.task, TASKS)
+    check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
+    check_choice("backend", cfg.backend, BACKENDS)
+    check_choice("training split", cfg.split, ("seen", "seen_half"))
+    for name in ("frames", "frames_per_batch", "epochs", "minibatch", "num_points", "checkpoint_every"):
+        if getattr(cfg, name) < 1:
+            raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
+    if cfg.workers < 0 or (cfg.backend != "process" and cfg.workers < 1):
+        raise ValueError(f"workers must be >= 0 (>= 1 for the {cfg.backend} backend), got {cfg.workers}")
+    if cfg.frames_per_batch % max(cfg.workers, 1):
+        raise ValueError(f"frames_per_batch ({cfg.frames_per_batch}) must be a multiple of workers ({cfg.workers})")
+    if cfg.pretrained and not Path(cfg.pretrained).is_file():
+        raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
+
+
+def make_collector(cfg: PPOConfig, env_fn, policy, total_frames: int):
+    """The collector of ``cfg.backend``; each worker builds its own env with ``env_fn``."""
+    from torchrl.collectors import Collector, MultiSyncCollector
+
+    common = dict(frames_per_batch=cfg.frames_per_batch, total_frames=total_frames)
+    if cfg.backend == "process" and cfg.workers <= 1:
+        return Collector(env_fn, policy, **common)
+    if cfg.backend == "process":  # num_threads: keep this process's torch threads for the update
+        return MultiSyncCollector([env_fn] * cfg.workers, policy, num_threads=torch.get_num_threads(), **common)
+    if cfg.backend == "distributed":
+        from torchrl.collectors.distributed import DistributedCollector
+
+        return DistributedCollector([env_fn] * cfg.workers, policy, launcher="mp", sync=True,
+                                    tcp_port=str(cfg.tcp_port), **common)
+    if importlib.util.find_spec("ray") is None:
+        raise RuntimeError("the ray backend needs Ray, an optional extra: pip install '.[distributed]' "
+                           "(or pip install 'dexart_lite[distributed]')")
+    from torchrl.collectors.distributed import RayCollector
+
+    return RayCollector([env_fn] * cfg.workers, policy, sync=True, remote_configs={"num_cpus": 1},
+                        ray_init_config={"address": cfg.ray_address} if cfg.ray_address else None, **common)
+
+
+def add_next_values(data, value_operator) -> None:
+    """Write ``("next", "state_value")`` for GAE, from the values the collector recorded.
+
+    The collector runs the whole actor-critic, so ``data["state_value"]`` already holds V(s_t)
+    computed with the current weights (as SB3's rollout buffer). V(s_{t+1}) is the next entry in
+    time, except where the next observation is not the next root one: after a time-limit
+    truncation (bootstrapped, as SB3) and at the end of the batch; only those are evaluated here.
+    After a termination the next value is masked out by GAE. data: (workers, T) or (T,).
+    """
+    value = data["state_value"]  # (..., T, 1)
+    next_value = torch.roll(value, shifts=-1, dims=-2).clone()
+    fresh = data["next", "truncated"].squeeze(-1).clone()  # (..., T)
+    fresh[..., -1] = True
+    next_value[fresh] = value_operator(data["next"][fresh])["state_value"]
+    data["next", "state_value"] = next_value
+
+
+def batch_stats(data) -> dict:
+    """Episode return / success of the episodes that ended in ``data``, and the fraction of steps per stage."""
+    done = data["next", "done"].squeeze(-1)
+    stage = data["next", "stage"]
+    stats = {f"stage{s}_frac": float((stage == s).float().mean()) for s in (1, 2, 3)}
+    stats["progress"] = float(data["next", "progress"].mean())
+    stats["episodes"] = int(done.sum())
+    ended = stats["episodes"] > 0
+    stats["episode_return"] = float(data["next", "episode_reward"].squeeze(-1)[done].mean()) if ended else math.nan
+    stats["success_rate"] = float(data["next", "episode_success"][done].float().mean()) if ended else math.nan
+    stats["episode_length"] = float(data["next", "step_count"].squeeze(-1)[done].float().mean()) if ended else math.nan
+    return stats
+
+
+def train(cfg: PPOConfig) -> dict:
+    """Train, evaluate on seen and unseen objects, write the report; returns the paths and results."""
+    from tensordict import TensorDict
+    from torchrl.objectives import ClipPPOLoss
+    from torchrl.objectives.value import GAE
+    from torchrl.record.loggers import CSVLogger
+
+    validate(cfg)
+    start = time.perf_counter()
+    out = Path(cfg.out)
+    ckpt_path = out / CHECKPOINT
+    if ckpt_path.exists() and not cfg.resume:
+        raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    if cfg.resume and not ckpt_path.exists():
+        raise FileNotFoundError(f"--resume: no checkpoint in {out}")
+    out.mkdir(parents=True, exist_ok=True)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+
+    # ---- env factory (picklable, for the worker processes) and the actor-critic
+    env_fn = partial(make_env, cfg.task, split=cfg.split, **cfg.env_kwargs())
+    probe = env_fn()
+    num_points, state_dim, action_dim = env_dims(probe)
+    probe.close()
+    actor_critic = make_actor_critic(state_dim, action_dim, cfg.encoder)
+    if cfg.pretrained:
+        load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
+    if cfg.freeze_encoder:
+        encoder_of(actor_critic).requires_grad_(False)
+
+    # ---- loss: the critic is the value HEAD, so the trunk runs once per minibatch
+    loss_module = ClipPPOLoss(actor_network=actor_critic.get_policy_operator(),
+                              critic_network=actor_critic.get_value_head(), clip_epsilon=cfg.clip_epsilon,
+                              entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.vf_coef, loss_critic_type="l2",
+                              normalize_advantage=cfg.normalize_advantage)
+    trainable = [p for p in loss_module.parameters() if p.requires_grad]
+    optimizer = torch.optim.Adam(trainable, lr=cfg.lr, eps=cfg.adam_eps)
+    gae = GAE(gamma=cfg.gamma, lmbda=cfg.lmbda, value_network=None, average_gae=False)  # reads the values
+    value_operator = actor_critic.get_value_operator()
+
+    frames_done, batches, history = 0, 0, []
+    if cfg.resume:
+        state = load_checkpoint(ckpt_path)
+        if state["config"]["encoder"] != cfg.encoder or state["config"]["task"] != cfg.task:
+            raise ValueError(f"--resume: {ckpt_path} is a {state['config']['encoder']} {state['config']['task']} "
+                             f"run, not {cfg.encoder} {cfg.task}")
+        actor_critic.load_state_dict(state["model"], strict=True)
+        optimizer.load_state_dict(state["optimizer"])
+        frames_done, batches, history = state["frames"], state["batches"], state["history"]
+
+    def checkpoint() -> Path:
+        return save_checkpoint(ckpt_path, {
+            "config": asdict(cfg), "model": actor_critic.state_dict(), "optimizer": optimizer.state_dict(),
+            "frames": frames_done, "batches": batches, "history": history,
+            "dims": {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim}})
+
+    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass)
+    remaining = cfg.frames - frames_done
+    collector = None
+    if remaining > 0:
+        collector = make_collector(cfg, env_fn, actor_critic, total_frames=remaining)
+        collector.set_seed(cfg.seed + 1000 * batches)
+    logger = CSVLogger(exp_name="log", log_dir=str(out))
+    bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
+               disable=not cfg.progress, desc=f"PPO {cfg.task}")
+    tick = time.perf_counter()
+    for data in collector or []:
+        collected = time.perf_counter()
+        n = data.numel()
+
+        # ---- advantages: GAE over time (the last batch dimension), once per batch as SB3
+        with torch.no_grad():
+            add_next_values(data, value_operator)
+            gae(data)
+        flat = data.reshape(-1).select(*BATCH_KEYS)
+
+        # ---- PPO epochs over shuffled minibatches
+        sums = dict.fromkeys(LOSS_KEYS, 0.0)
+        steps = 0
+        for _ in range(cfg.epochs):
+            for idx in torch.randperm(n).split(cfg.minibatch):
+                loss_td = loss_module(flat[idx])
+                loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
+                optimizer.zero_grad()
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(trainable, cfg.max_grad_norm)
+                optimizer.step()
+                for key in LOSS_KEYS:
+                    sums[key] += float(loss_td[key])
+                steps += 1
+        collector.update_policy_weights_()
+        updated = time.perf_counter()
+
+        # ---- logging
+        frames_done += n
+        batches += 1
+        row = {"frames": frames_done, "batch": batches, **batch_stats(data),
+               **{k: v / steps for k, v in sums.items()},
+               "log_std": float(action_log_std(actor_critic).mean()),
+               "collect_s": collected - tick, "update_s": updated - collected,
+               "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
+               "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
+        history.append(row)
+        logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
+        bar.update(n)
+        bar.set_postfix(ret=f"{row['episode_return']:.1f}", succ=f"{row['success_rate']:.2f}",
+                        fps=f"{row['fps']:.0f}")
+        if batches % cfg.checkpoint_every == 0:
+            checkpoint()
+        tick = time.perf_counter()
+    bar.close()
+    if collector is not None:
+        collector.shutdown()
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    ckpt = checkpoint()
+
+    # ---- evaluation on seen and unseen objects, learning curve, report
+    from dexart_lite.rl.evaluate import evaluate, markdown_table, record_gif
+    from dexart_lite.rl.report import plot_curve, write_report
+
+    evals = []
+    if cfg.eval_episodes > 0:
+        for split in ("seen", "unseen"):
+            result = evaluate(actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
+            (out / f"eval_{split}.json").write_text(json.dumps(result, indent=2))
+            evals.append(result)
+    gif = None
+    if cfg.gif:
+        name = objects_lib.list_objects(cfg.task, "seen")[0].name
+        gif = record_gif(actor_critic, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,
+                         cfg.env_kwargs())["path"]
+    curve = plot_curve(history, out / "learning_curve.png", title=f"PPO {cfg.task}, {cfg.encoder} PointNet")
+    wall = time.perf_counter() - start
+    report = write_report(out / "report.md", asdict(cfg), history, evals, curve, wall, gif)
+    if evals and cfg.progress:
+        print(markdown_table(evals))
+    return {"checkpoint": str(ckpt), "report": str(report), "curve": str(curve), "gif": gif,
+            "log_dir": str(out / "log"), "frames": frames_done, "wall_time_s": wall,
+            "eval": {e["split"]: e for e in evals}, "history": history}
+
+
+# ---------------------------------------------------------------- command line
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--preset", default="faithful", help=f"starting point: {', '.join(PRESETS)}")
+    for f in fields(PPOConfig):
+        flag = "--" + f.name.replace("_", "-")
+        helptext = f.metadata.get("help", "") + f" (faithful preset: {f.default})"
+        if isinstance(f.default, bool):
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
+        else:
+            kind = type(f.default) if f.default is not None else str
+            parser.add_argument(flag, type=kind, default=None, help=helptext)
+
+
+def run(args: argparse.Namespace) -> int:
+    overrides = {f.name: getattr(args, f.name) for f in fields(PPOConfig) if getattr(args, f.name) is not None}
+    cfg = preset(args.preset, **overrides)
+    result = train(cfg)
+    print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
+    for split, res in result["eval"].items():
+        print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")
+    return 0

@@ -1,0 +1,303 @@
+"""Scripted solvers: one privileged-state controller per task, proof that every task is solvable.
+
+They act through the same 22-D action as a learned policy (palm twist + hand joint targets) but
+read the simulator directly: the functional part's pose, its joint angle and its geometry. Each is a
+short state machine of palm poses defined in the functional part's frame, tracked by a Cartesian
+controller (``PalmController``). The manipulation phase "rides" the part: it asks for the grasp pose
+of the part turned a little further than it is now, so the hand pushes the part along its joint.
+
+    dexart-lite solve --task laptop --split seen --episodes-per-object 3 --json laptop.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from tqdm import tqdm
+
+import dexart_lite
+from dexart_lite.articulated import PART_LINK
+from dexart_lite.pointcloud import quat_to_matrix
+from dexart_lite.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
+from dexart_lite.robot_model import MOUNT_RPY, MOUNT_XYZ
+from dexart_lite.utils import check_choice
+
+
+# ----------------------------------------------------------------------------- small geometry
+def rot_axis(axis, angle: float) -> np.ndarray:
+    """Rotation matrix of ``angle`` rad about the unit ``axis`` (Rodrigues)."""
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def rotvec(rot: np.ndarray) -> np.ndarray:
+    """Axis * angle (3,) of a rotation matrix (angle in [0, pi])."""
+    cos = np.clip((np.trace(rot) - 1) / 2, -1.0, 1.0)
+    angle = np.arccos(cos)
+    if angle < 1e-9:
+        return np.zeros(3)
+    if angle > np.pi - 1e-6:  # near pi: take the axis from the symmetric part
+        axis = np.sqrt(np.clip((np.diag(rot) + 1) / 2, 0, None))
+        axis *= np.sign(np.where(np.abs(rot[2, 1] - rot[1, 2]) > 1e-9, rot[[2, 0, 1], [1, 2, 0]] - rot[[1, 2, 0], [2, 0, 1]], 1))
+        return axis * angle
+    return angle / (2 * np.sin(angle)) * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    r, p, y = rpy
+    return rot_axis((0, 0, 1), y) @ rot_axis((0, 1, 0), p) @ rot_axis((1, 0, 0), r)
+
+
+def hand_frame(normal, fingers) -> np.ndarray:
+    """Palm orientation (3, 3) from the palm normal (+x of base_link) and the finger direction (+z);
+    ``fingers`` is made orthogonal to ``normal``."""
+    x = np.asarray(normal, float) / np.linalg.norm(normal)
+    z = np.asarray(fingers, float) - np.dot(fingers, x) * x
+    z /= np.linalg.norm(z)
+    return np.stack([x, np.cross(z, x), z], axis=1)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A rigid transform: position (3,) and rotation (3, 3)."""
+
+    p: np.ndarray
+    R: np.ndarray
+
+    def __matmul__(self, other: "Pose") -> "Pose":
+        return Pose(self.p + self.R @ other.p, self.R @ other.R)
+
+    def apply(self, point) -> np.ndarray:
+        return self.p + self.R @ np.asarray(point, float)
+
+
+# The palm (base_link) in the flange (link6) frame: DexArt's mount.
+MOUNT = Pose(np.asarray(MOUNT_XYZ, float), rpy_matrix(MOUNT_RPY))
+MOUNT_INV = Pose(-MOUNT.R.T @ MOUNT.p, MOUNT.R.T)
+
+
+# ----------------------------------------------------------------------------- controllers
+class PalmController:
+    """Palm pose -> flange twist (action[0:6]) with a proportional law and speed caps."""
+
+    def __init__(self, gain: float = 6.0, rot_gain: float = 4.0, max_speed: float = 0.35, max_rot: float = 1.0):
+        self.gain, self.rot_gain, self.max_speed, self.max_rot = gain, rot_gain, max_speed, max_rot
+
+    def __call__(self, state, target: Pose) -> tuple[np.ndarray, float, float]:
+        """Twist action (6,) toward the palm ``target``, plus the position (m) and angle (rad) errors."""
+        flange = Pose(state.robot.flange_pos, quat_to_matrix(state.robot.flange_quat))
+        goal = target @ MOUNT_INV  # flange pose that puts the palm at the target
+        dp = goal.p - flange.p
+        dr = rotvec(goal.R @ flange.R.T)
+        v = self.gain * dp
+        w = self.rot_gain * dr
+        v *= min(1.0, self.max_speed / max(np.linalg.norm(v), 1e-9))
+        w *= min(1.0, self.max_rot / max(np.linalg.norm(w), 1e-9))
+        palm_err = float(np.linalg.norm(target.p - state.robot.palm_pos))
+        return np.concatenate([v / MAX_LINEAR_SPEED, w / MAX_ANGULAR_SPEED]), palm_err, float(np.linalg.norm(dr))
+
+
+# Hand shapes as joint targets (rad), per finger: (abduction, MCP, PIP, DIP); thumb (rot, abd, flex, flex).
+def hand_shape(finger=(0.0, 0.0, 0.0, 0.0), thumb=(0.3, 0.0, 0.0, 0.0), spread: float = 0.0) -> np.ndarray:
+    """16 hand joint targets: the same flexion for index, middle and ring, the abductions spread by
+    ``spread`` rad (index +, ring -), and the thumb."""
+    a, *flex = finger
+    return np.array([a + spread, *flex, a, *flex, a - spread, *flex, *thumb], dtype=float)
+
+
+OPEN = hand_shape()
+
+
+# ----------------------------------------------------------------------------- the part's frame
+class PartFrame:
+    """The functional part's pose, now and at other joint angles, and its extent in its own frame."""
+
+    def __init__(self, env):
+        import yourdfpy  # local import: only the solvers read object URDFs
+
+        self.env = env
+        path = Path(env.objects.active.urdf_path)
+        urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False)
+        joint = next(j for j in urdf.robot.joints if j.type == "revolute")
+        self.axis_local = np.asarray(joint.axis, float)  # joint axis in the part frame
+        mesh = urdf.link_map[joint.child].visuals[0].geometry.mesh.filename
+        self.mesh_bounds = trimesh.load(path.parent / mesh, force="mesh").bounds  # (2, 3), part frame, m
+
+    def pose(self, q: float | None = None) -> Pose:
+        """World pose of the part frame at joint angle ``q`` (default: now)."""
+        env = self.env
+        pos, quat = env.sim.link_frames(env.objects.body, [PART_LINK])
+        now = Pose(pos[0], quat_to_matrix(quat[0]))
+        if q is None:
+            return now
+        axis_world = now.R @ self.axis_local
+        return Pose(now.p, rot_axis(axis_world, q - env._state.q) @ now.R)
+
+
+# ----------------------------------------------------------------------------- the solvers
+class Solver:
+    """Base of the per-task state machines. ``act(state) -> action (22,)``."""
+
+    def __init__(self, env):
+        self.env = env
+        self.frame = PartFrame(env)
+        self.palm = PalmController()
+        self.phase, self.phase_steps = "approach", 0
+        self.hand = OPEN.copy()
+
+    def goto(self, phase: str) -> None:
+        self.phase, self.phase_steps = phase, 0
+
+    def action(self, state, target: Pose, hand: np.ndarray) -> tuple[np.ndarray, float, float]:
+        twist, err_p, err_r = self.palm(state, target)
+        return np.concatenate([twist, self.env.robot.hand_action(hand)]), err_p, err_r
+
+    def act(self, state) -> np.ndarray:
+        self.phase_steps += 1
+        return self.step(state)
+
+    def step(self, state) -> np.ndarray:
+        raise NotImplementedError
+
+
+class LidSolver(Solver):
+    """Laptop and toilet: lift the lid's free edge with the fingertips, then push its inner face open
+    with the palm and fingers flat on it (the grasp the reward asks for).
+
+    Lid frame: the hinge axis is +y, the closed lid extends toward -x, q > 0 lifts the free edge, and
+    the lid's inner (screen / seat) face is its -z side.
+    """
+
+    LIFT_TO = 0.75  # rad: open this far with the fingertips before switching to the palm push
+    LEAD = 0.35  # rad: the push asks for the pose this much further open than the lid is
+    PRESS = 0.008  # m: how far into the lid surface the palm is asked to go (contact force)
+
+    def __init__(self, env):
+        super().__init__(env)
+        lo, hi = self.frame.mesh_bounds
+        self.edge_x, self.inner_z, self.outer_z = lo[0], lo[2], hi[2]  # free edge; inner and outer faces
+        self.mid_y = 0.5 * (lo[1] + hi[1])
+        self.width = hi[1] - lo[1]
+
+    # Palm poses in the lid frame.
+    def lift_pose(self, depth_under: float, clearance: float) -> Pose:
+        """Fingers pointing at the hinge (+x), palm facing the inner face (+z), fingertips
+        ``depth_under`` under the free edge, ``clearance`` below the inner face."""
+        knuckles = np.array([self.edge_x - 0.135 + depth_under, self.mid_y, self.inner_z - 0.012 - clearance])
+        return Pose(knuckles, hand_frame(normal=(0, 0, 1), fingers=(1, 0, 0)))
+
+    def push_pose(self, offset: float) -> Pose:
+        """Palm flat on the inner face near the free edge, fingers along the hinge (+y);
+        ``offset`` > 0 holds the palm off the face, < 0 presses into it."""
+        knuckles = np.array([self.edge_x + 0.067, self.mid_y - 0.026, self.inner_z - 0.0111 - offset])
+        return Pose(knuckles, hand_frame(normal=(0, 0, 1), fingers=(0, 1, 0)))
+
+    def step(self, s) -> np.ndarray:
+        q, target = s.q, s.obj.joint_target
+        if self.phase == "approach":  # in front of and below the free edge
+            lid = self.frame.pose()
+            a, err, err_r = self.action(s, lid @ self.lift_pose(-0.04, 0.0), OPEN)
+            if (err < 0.015 and err_r < 0.1) or self.phase_steps > 60:
+                self.goto("slide")
+            return a
+        if self.phase == "slide":  # fingertips under the edge
+            lid = self.frame.pose()
+            a, err, _ = self.action(s, lid @ self.lift_pose(0.025, 0.0), OPEN)
+            if err < 0.01 or self.phase_steps > 25:
+                self.goto("lift")
+            return a
+        if self.phase == "lift":  # ride the lid up on the fingertips
+            lid = self.frame.pose(min(q + self.LEAD, self.LIFT_TO + 0.1))
+            a, _, _ = self.action(s, lid @ self.lift_pose(0.025, -0.004), OPEN)
+            if q > self.LIFT_TO or self.phase_steps > 80:
+                self.goto("reposition")
+            return a
+        if self.phase == "reposition":  # off the face, turn the hand to lie along the hinge
+            lid = self.frame.pose()
+            a, err, err_r = self.action(s, lid @ self.push_pose(0.05), OPEN)
+            if (err < 0.02 and err_r < 0.15) or self.phase_steps > 50:
+                self.goto("push")
+            return a
+        # push: palm and fingers flat on the inner face, riding it open to the target
+        lid = self.frame.pose(min(q + self.LEAD, target + 0.15))
+        flat = hand_shape(finger=(0.0, 0.1, 0.05, 0.0), thumb=(0.3, 0.0, 0.0, 0.0))
+        a, _, _ = self.action(s, lid @ self.push_pose(-self.PRESS), flat)
+        return a
+
+
+SOLVERS = {"laptop": LidSolver, "toilet": LidSolver}
+
+
+class ScriptedPolicy:
+    """observation -> action for a DexArt-lite env, using the env's privileged state."""
+
+    def __init__(self, env):
+        self.env = env.unwrapped
+        check_choice("task with a scripted solver", self.env.CATEGORY, SOLVERS)
+        self.solver: Solver | None = None
+        self._episode = None
+
+    def __call__(self, obs=None) -> np.ndarray:
+        env = self.env
+        key = (id(env._state.obj), env._base_at_reset.tobytes())
+        if env._t == 0 or self.solver is None or key != self._episode:
+            self.solver, self._episode = SOLVERS[env.CATEGORY](env), key
+        return np.clip(self.solver.act(env._state), -1.0, 1.0)
+
+
+# ----------------------------------------------------------------------------- evaluation + CLI
+def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: int = 0, object_names=None,
+          progress: bool = True) -> dict:
+    """Run the scripted solver over every object of a split; success counts if reached at any step."""
+    from dexart_lite.envs import make
+
+    env = make(task, split=split, object_names=object_names, num_points=32)
+    policy = ScriptedPolicy(env)
+    names = env.unwrapped.objects.names
+    per_object: dict[str, list[bool]] = {n: [] for n in names}
+    stages: list[int] = []
+    bar = tqdm(total=len(names) * episodes_per_object, desc=f"solve {task}/{split}", disable=not progress)
+    for k in range(episodes_per_object):
+        for i, name in enumerate(names):
+            obs, info = env.reset(seed=seed + 1000 * k + i, options={"object": name})
+            success, best_stage, done = False, info["stage"], False
+            while not done:
+                obs, _, terminated, truncated, info = env.step(policy(obs))
+                success, best_stage = success or info["success"], max(best_stage, info["stage"])
+                done = terminated or truncated
+            per_object[name].append(success)
+            stages.append(best_stage)
+            bar.update()
+    bar.close()
+    env.close()
+    rates = {n: float(np.mean(v)) for n, v in per_object.items()}
+    return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
+            "success_rate": float(np.mean([x for v in per_object.values() for x in v])),
+            "success_per_object": rates, "mean_max_stage": float(np.mean(stages))}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--task", required=True, help=f"one of {', '.join(SOLVERS)}")
+    parser.add_argument("--split", default="seen", help="seen, unseen or seen_half")
+    parser.add_argument("--episodes-per-object", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", type=Path, help="write the results here")
+
+
+def run(args: argparse.Namespace) -> int:
+    check_choice("task", args.task, dexart_lite.TASKS)
+    result = solve(args.task, args.split, args.episodes_per_object, args.seed)
+    print(f"| object | success |\n|---|---|")
+    for name, rate in result["success_per_object"].items():
+        print(f"| {name} | {rate:.2f} |")
+    print(f"| **all** | **{result['success_rate']:.2f}** |  (mean max stage {result['mean_max_stage']:.2f})")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=2) + "\n")
+    return 0

@@ -12,6 +12,7 @@ of the part turned a little further than it is now, so the hand pushes the part 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,16 +90,17 @@ class PalmController:
     def __init__(self, gain: float = 6.0, rot_gain: float = 4.0, max_speed: float = 0.35, max_rot: float = 1.0):
         self.gain, self.rot_gain, self.max_speed, self.max_rot = gain, rot_gain, max_speed, max_rot
 
-    def __call__(self, state, target: Pose) -> tuple[np.ndarray, float, float]:
-        """Twist action (6,) toward the palm ``target``, plus the position (m) and angle (rad) errors."""
+    def __call__(self, state, target: Pose, speed: float = 1.0) -> tuple[np.ndarray, float, float]:
+        """Twist action (6,) toward the palm ``target``, plus the position (m) and angle (rad) errors.
+        ``speed`` scales the speed caps (slow moves near a goal)."""
         flange = Pose(state.robot.flange_pos, quat_to_matrix(state.robot.flange_quat))
         goal = target @ MOUNT_INV  # flange pose that puts the palm at the target
         dp = goal.p - flange.p
         dr = rotvec(goal.R @ flange.R.T)
         v = self.gain * dp
         w = self.rot_gain * dr
-        v *= min(1.0, self.max_speed / max(np.linalg.norm(v), 1e-9))
-        w *= min(1.0, self.max_rot / max(np.linalg.norm(w), 1e-9))
+        v *= min(1.0, speed * self.max_speed / max(np.linalg.norm(v), 1e-9))
+        w *= min(1.0, speed * self.max_rot / max(np.linalg.norm(w), 1e-9))
         palm_err = float(np.linalg.norm(target.p - state.robot.palm_pos))
         return np.concatenate([v / MAX_LINEAR_SPEED, w / MAX_ANGULAR_SPEED]), palm_err, float(np.linalg.norm(dr))
 
@@ -154,8 +156,8 @@ class Solver:
     def goto(self, phase: str) -> None:
         self.phase, self.phase_steps = phase, 0
 
-    def action(self, state, target: Pose, hand: np.ndarray) -> tuple[np.ndarray, float, float]:
-        twist, err_p, err_r = self.palm(state, target)
+    def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0) -> tuple[np.ndarray, float, float]:
+        twist, err_p, err_r = self.palm(state, target, speed)
         return np.concatenate([twist, self.env.robot.hand_action(hand)]), err_p, err_r
 
     def act(self, state) -> np.ndarray:
@@ -166,68 +168,134 @@ class Solver:
         raise NotImplementedError
 
 
-class LidSolver(Solver):
-    """Laptop and toilet: lift the lid's free edge with the fingertips, then push its inner face open
-    with the palm and fingers flat on it (the grasp the reward asks for).
+def finger_tip(mcp: float, pip: float, dip: float) -> np.ndarray:
+    """Planar forward kinematics of a finger: tip centre (x_h, z_h) in the palm frame, m.
 
-    Lid frame: the hinge axis is +y, the closed lid extends toward -x, q > 0 lifts the free edge, and
-    the lid's inner (screen / seat) face is its -z side.
+    x_h is the palmar direction, z_h the finger direction (index, middle and ring alike, ignoring
+    their +-5 degree roll)."""
+    lengths, base = (0.054, 0.0384, 0.0267), np.array([0.0, 0.0164])
+    angles = np.cumsum([mcp, pip, dip])
+    return base + sum(l * np.array([np.sin(a), np.cos(a)]) for l, a in zip(lengths, angles))
+
+
+TUCKED_THUMB = (0.263, -0.105, 1.644, 0.78)  # thumb folded flat against the palm (6 mm proud of it)
+
+
+@functools.lru_cache(maxsize=1)
+def thumb_table() -> tuple[np.ndarray, np.ndarray]:
+    """Thumb joint configurations (N, 4) and their tip centres (N, 3) in the palm frame, m.
+
+    Computed once per process by forward kinematics of the hand URDF on a grid over the joint
+    limits (a solver picks the configuration whose tip lands where it needs it)."""
+    from dexart_lite import paths
+    from dexart_lite.sim import BulletSim
+
+    sim = BulletSim()
+    hand = sim.load_urdf("hand", paths.hand_urdf(), fixed_base=True)
+    joints = [hand.joint(f"joint_{i}.0") for i in range(12, 16)]
+    tip = hand.link("link_15.0_tip")
+    grids = [np.linspace(lo, hi, n) for lo, hi, n in zip(hand.lower[12:], hand.upper[12:], (10, 7, 8, 8))]
+    configs = np.array(np.meshgrid(*grids, indexing="ij")).reshape(4, -1).T
+    tips = np.empty((len(configs), 3))
+    for i, config in enumerate(configs):
+        sim.reset_joints(hand, joints, config)
+        tips[i] = sim.link_frames(hand, [tip])[0][0]
+    sim.close()
+    return configs, tips
+
+
+def thumb_reaching(point) -> np.ndarray:
+    """The tabled thumb configuration (4,) whose tip centre is nearest to ``point`` (palm frame)."""
+    configs, tips = thumb_table()
+    return configs[np.argmin(np.linalg.norm(tips - np.asarray(point), axis=1))]
+
+
+class LidSolver(Solver):
+    """Laptop and toilet: pinch the lid's free edge and turn the lid open with it.
+
+    The grasp faces the free edge: the palm presses on the edge strip toward the hinge (a push the
+    hinge takes up), the fingers reach under the lid and curl up onto its inner face, and the thumb
+    comes down on the outer face. The thumb-finger squeeze is internal to the hand, so all three
+    contacts carry well over the 2.5 N that count as contact, whatever the lid's friction. With the
+    lid nearly shut there is no room for the curled fingers yet, so the hand first lifts the edge on
+    straight fingers, then closes the pinch and rides the lid frame open to the target.
+
+    Lid frame: the hinge axis is +y, the closed lid extends toward -x (the free edge at the lowest
+    x), q > 0 lifts the free edge; the outer face is the lid's +z side, the inner face its -z side.
+    Hand: palm normal +x (toward the hinge), fingers -z (from the outer face past the edge).
     """
 
-    LIFT_TO = 0.75  # rad: open this far with the fingertips before switching to the palm push
-    LEAD = 0.35  # rad: the push asks for the pose this much further open than the lid is
-    PRESS = 0.008  # m: how far into the lid surface the palm is asked to go (contact force)
+    LEAD = 0.3  # rad: while opening, ask for the grasp pose of the lid this much further open
+    NEAR = 0.35  # rad: from this far below the target on, close in slowly
+    LEAD_NEAR = 0.12  # rad: the largest step asked for then
+    BIAS = 0.03  # rad: the hand holds the lid about this much behind where it is asked to be
+    PINCH_AT = 0.45  # rad: lift on straight fingers up to this opening, then pinch
+    DROP = 0.012  # m: knuckle line below the inner face
+    PRESS = 0.004  # m: the palm is asked this far into the edge strip (contact force)
+    SQUEEZE = 0.006  # m: finger and thumb tips are aimed this far into the faces
+    # Fingers angled under the edge while lifting (MCP, PIP, DIP, rad).
+    LIFT_FINGERS = (0.0, 1.35, 0.15, 0.1)
 
     def __init__(self, env):
         super().__init__(env)
         lo, hi = self.frame.mesh_bounds
-        self.edge_x, self.inner_z, self.outer_z = lo[0], lo[2], hi[2]  # free edge; inner and outer faces
-        self.mid_y = 0.5 * (lo[1] + hi[1])
-        self.width = hi[1] - lo[1]
+        self.edge_x, self.mid_y, self.width = lo[0], 0.5 * (lo[1] + hi[1]), hi[1] - lo[1]
+        self.inner_z, self.outer_z = lo[2], hi[2]
+        # Come in from the side of the lid that is nearer the robot's centre line.
+        self.side_sign = -np.sign(self.frame.pose().R[1, 1] * (self.frame.pose().p[1] - env.ROBOT_BASE[1]) or 1.0)
+        thickness = hi[2] - lo[2]  # of the lid near its edge (an upper bound)
+        # In the palm frame: x toward the hinge, z down past the edge; faces at z = -DROP and below.
+        z_inner = -self.DROP
+        phis = np.linspace(0.0, 1.6, 65)
+        tips = np.array([finger_tip(1.57, phi, phi) for phi in phis])
+        phi = phis[np.argmin(np.abs(tips[:, 1] - (z_inner + 0.012 - self.SQUEEZE)))]
+        thumb = thumb_reaching((0.035, 0.0, z_inner - thickness - 0.012 + self.SQUEEZE))
+        self.pinch = hand_shape(finger=(0.0, 1.57, phi, phi), thumb=thumb)
+        self.lift = hand_shape(finger=self.LIFT_FINGERS, thumb=(0.263, 0.0, 0.0, 0.0))
 
-    # Palm poses in the lid frame.
-    def lift_pose(self, depth_under: float, clearance: float) -> Pose:
-        """Fingers pointing at the hinge (+x), palm facing the inner face (+z), fingertips
-        ``depth_under`` under the free edge, ``clearance`` below the inner face."""
-        knuckles = np.array([self.edge_x - 0.135 + depth_under, self.mid_y, self.inner_z - 0.012 - clearance])
-        return Pose(knuckles, hand_frame(normal=(0, 0, 1), fingers=(1, 0, 0)))
-
-    def push_pose(self, offset: float) -> Pose:
-        """Palm flat on the inner face near the free edge, fingers along the hinge (+y);
-        ``offset`` > 0 holds the palm off the face, < 0 presses into it."""
-        knuckles = np.array([self.edge_x + 0.067, self.mid_y - 0.026, self.inner_z - 0.0111 - offset])
-        return Pose(knuckles, hand_frame(normal=(0, 0, 1), fingers=(0, 1, 0)))
+    def grasp_pose(self, side: float = 0.0, up: float = 0.0) -> Pose:
+        """The pinch pose, moved ``side`` along the edge (y) and ``up`` (+z) for the approach."""
+        knuckles = np.array([self.edge_x - 0.0111 + self.PRESS, self.mid_y + side, self.inner_z - self.DROP + up])
+        return Pose(knuckles, hand_frame(normal=(1, 0, 0), fingers=(0, 0, -1)))
 
     def step(self, s) -> np.ndarray:
         q, target = s.q, s.obj.joint_target
-        if self.phase == "approach":  # in front of and below the free edge
-            lid = self.frame.pose()
-            a, err, err_r = self.action(s, lid @ self.lift_pose(-0.04, 0.0), OPEN)
-            if (err < 0.015 and err_r < 0.1) or self.phase_steps > 60:
-                self.goto("slide")
+        lid = self.frame.pose()
+        # The fingers reach 12 cm under the lid, so the hand comes in from beside it, at the final
+        # height: from the front it would need room that near objects leave to the robot's base.
+        beside = self.side_sign * (0.5 * self.width + 0.09)
+        if self.phase == "approach":  # high beside the lid, turned, fingers angled forward
+            a, err, err_r = self.action(s, lid @ self.grasp_pose(side=beside, up=0.12), self.lift)
+            if (err < 0.03 and err_r < 0.15) or self.phase_steps > 50:
+                self.goto("descend")
             return a
-        if self.phase == "slide":  # fingertips under the edge
-            lid = self.frame.pose()
-            a, err, _ = self.action(s, lid @ self.lift_pose(0.025, 0.0), OPEN)
+        if self.phase == "descend":  # down beside the lid
+            a, err, err_r = self.action(s, lid @ self.grasp_pose(side=beside), self.lift)
+            if (err < 0.015 and err_r < 0.1) or self.phase_steps > 30:
+                self.goto("insert")
+            return a
+        if self.phase == "insert":  # slide along the edge: fingers under it, palm against it
+            a, err, _ = self.action(s, lid @ self.grasp_pose(), self.lift)
             if err < 0.01 or self.phase_steps > 25:
                 self.goto("lift")
             return a
-        if self.phase == "lift":  # ride the lid up on the fingertips
-            lid = self.frame.pose(min(q + self.LEAD, self.LIFT_TO + 0.1))
-            a, _, _ = self.action(s, lid @ self.lift_pose(0.025, -0.004), OPEN)
-            if q > self.LIFT_TO or self.phase_steps > 80:
-                self.goto("reposition")
+        if self.phase == "lift":  # raise the edge on the fingers
+            a, _, _ = self.action(s, self.frame.pose(min(q + self.LEAD, self.PINCH_AT + 0.1)) @ self.grasp_pose(), self.lift)
+            if q > self.PINCH_AT or self.phase_steps > 40:
+                self.goto("pinch")
             return a
-        if self.phase == "reposition":  # off the face, turn the hand to lie along the hinge
-            lid = self.frame.pose()
-            a, err, err_r = self.action(s, lid @ self.push_pose(0.05), OPEN)
-            if (err < 0.02 and err_r < 0.15) or self.phase_steps > 50:
-                self.goto("push")
+        if self.phase == "pinch":  # close thumb and fingers on the lid
+            a, _, _ = self.action(s, lid @ self.grasp_pose(), self.pinch)
+            if self.phase_steps > 8:
+                self.goto("open")
             return a
-        # push: palm and fingers flat on the inner face, riding it open to the target
-        lid = self.frame.pose(min(q + self.LEAD, target + 0.15))
-        flat = hand_shape(finger=(0.0, 0.1, 0.05, 0.0), thumb=(0.3, 0.0, 0.0, 0.0))
-        a, _, _ = self.action(s, lid @ self.push_pose(-self.PRESS), flat)
+        if q < target - self.NEAR:
+            a, _, _ = self.action(s, self.frame.pose(q + self.LEAD) @ self.grasp_pose(), self.pinch)
+            return a
+        # Near the target, slowly, a proportional law on the lid angle: past the vertical the lid
+        # would otherwise swing on to its limit and out of the hand.
+        goal = q + np.clip(1.5 * (target - q) + self.BIAS, -self.LEAD_NEAR, self.LEAD_NEAR)
+        a, _, _ = self.action(s, self.frame.pose(goal) @ self.grasp_pose(), self.pinch, speed=0.35)
         return a
 
 

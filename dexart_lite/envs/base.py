@@ -35,7 +35,7 @@ from dexart_lite.utils import check_choice
 from dexart_lite.registration import HORIZON  # noqa: E402  (control steps per episode)
 GROUPS = tuple(FINGER_GROUPS)  # ("thumb", "index", "middle", "ring", "palm")
 CONTACT_IMPULSE = 0.01  # N*s summed over a link pair's contact points (DexArt), i.e. 2.5 N at dt 0.004
-MAX_JOINT_SPEED = 50.0  # rad/s; faster means the simulation blew up
+MAX_JOINT_SPEED = 99.0  # rad/s; PyBullet clamps joint speeds at 100: reaching it means the solver lost control
 MAX_OBJECT_SPEED = 10.0  # m/s
 TABLE_HALF_EXTENTS = (0.65, 0.65, 0.025)  # m, top surface at z = 0
 TABLE_RGBA, PEDESTAL_RGBA = (0.8, 0.75, 0.65, 1.0), (0.5, 0.5, 0.5, 1.0)

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import statistics
 import sys
 import time
@@ -31,17 +30,7 @@ import numpy as np
 import dexart_lite
 from dexart_lite import pointcloud as pc
 from dexart_lite.envs import make
-
-
-def machine() -> dict:
-    cpu = "unknown"
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    import os
-
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()}
+from dexart_lite.utils import machine_info
 
 
 def main(argv=None) -> dict:
@@ -120,7 +109,7 @@ def main(argv=None) -> dict:
         "steps_per_s_full": 1e3 / ms["full"],
         "settings": {"camera": "64x64 TinyRenderer", "points": "512 + 96", "dt": env.sim.dt, "frame_skip": env.frame_skip},
         "command": "python benchmarks/bench_sim.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-        "machine": machine(),
+        "machine": machine_info(),
     }
     print(f"| part ({args.task}) | ms per control step |\n|---|---|")
     for k, v in ms.items():

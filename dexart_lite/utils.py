@@ -15,3 +15,17 @@ def check_choice(kind: str, value, choices) -> None:
     choices = list(choices)
     if value not in choices:
         raise ValueError(f"unknown {kind} {value!r}; valid choices: {', '.join(map(str, choices))}")
+
+
+def machine_info() -> dict:
+    """What a benchmark ran on: CPU model, core count, Python and platform."""
+    import os
+    import platform
+
+    cpu = "unknown"
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()}

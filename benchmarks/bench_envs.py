@@ -1,0 +1,147 @@
+"""Env throughput per task (random actions, 1 and 2 processes) and memory over many resets.
+
+For each task, side by side in one run:
+
+* ``steps_per_s``: ``env.step`` with random actions in this process (reset when an episode ends);
+* ``steps_per_s_2proc``: the total of two such loops in two worker processes at once;
+* ``vs_physics_only``: the full step's cost over the physics-only control step
+  (action -> IK + motor targets -> frame_skip sub-steps), measured in the same process.
+
+``reset_rss_growth_mb``: resident memory after ``--resets`` resets cycling through every laptop
+(seen and unseen objects in one env), minus the memory after a warm-up of one cycle.
+
+    python benchmarks/bench_envs.py --json benchmarks/results/bench_envs.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import psutil
+
+import dexart_lite
+from dexart_lite.envs import make
+from dexart_lite.utils import machine_info
+
+
+def random_actions(n: int, seed: int = 0) -> np.ndarray:
+    """Random actions (n, 22): gentle arm twists, any hand targets."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-1, 1, size=(n, 22)) * np.r_[[0.3] * 6, [1.0] * 16]
+
+
+def step_rate(task: str, steps: int, seed: int = 0) -> float:
+    """env.step calls per second over ``steps`` random steps (episodes restart as they end)."""
+    env = make(task)
+    env.reset(seed=seed)
+    actions = random_actions(steps, seed)
+    start = time.perf_counter()
+    for a in actions:
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            env.reset()
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def physics_rate(task: str, steps: int, seed: int = 0) -> float:
+    """Physics-only control steps per second (what env.step does before reading the state)."""
+    env = make(task).unwrapped
+    env.reset(seed=seed)
+    actions = random_actions(steps, seed)
+    start = time.perf_counter()
+    for a in actions:
+        q, _ = env.sim.joint_states(env.robot.body, env.robot.joints)
+        env.robot.apply_action(a, q)
+        for i in range(env.frame_skip):
+            env.robot.track_arm((i + 1) * env.sim.dt)
+            env.sim.step()
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def _worker(task: str, steps: int, seed: int, barrier, out) -> None:
+    env = make(task)
+    env.reset(seed=seed)
+    actions = random_actions(steps, seed)
+    barrier.wait()
+    start = time.perf_counter()
+    for a in actions:
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            env.reset()
+    out.put(steps / (time.perf_counter() - start))
+    env.close()
+
+
+def two_process_rate(task: str, steps: int) -> float:
+    """Total env steps per second of two worker processes stepping at the same time."""
+    ctx = mp.get_context("spawn")
+    barrier, out = ctx.Barrier(2), ctx.Queue()
+    procs = [ctx.Process(target=_worker, args=(task, steps, seed, barrier, out)) for seed in (0, 1)]
+    for p in procs:
+        p.start()
+    rates = [out.get() for _ in procs]
+    for p in procs:
+        p.join()
+    return float(sum(rates))
+
+
+def reset_rss_growth_mb(resets: int) -> float:
+    """Memory growth over ``resets`` resets cycling through all laptops, after one warm-up cycle."""
+    names = [o.name for s in ("seen", "unseen") for o in dexart_lite.objects.list_objects("laptop", s)]
+    env = make("laptop", object_names=names)
+    process = psutil.Process()
+    for i, name in enumerate(names):  # warm-up: every object visited once
+        env.reset(seed=i, options={"object": name})
+    before = process.memory_info().rss
+    for i in range(resets):
+        env.reset(seed=i, options={"object": names[i % len(names)]})
+    growth = (process.memory_info().rss - before) / 2**20
+    env.close()
+    return growth
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", nargs="+", default=list(dexart_lite.TASKS), choices=dexart_lite.TASKS)
+    parser.add_argument("--steps", type=int, default=400, help="steps per measurement")
+    parser.add_argument("--rounds", type=int, default=3, help="repeats of the 1-process measurements (median)")
+    parser.add_argument("--resets", type=int, default=2000)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+
+    tasks = {}
+    for task in args.tasks:
+        full, physics = [], []
+        for _ in range(args.rounds):  # interleaved, so drifts in machine load hit both alike
+            full.append(step_rate(task, args.steps))
+            physics.append(physics_rate(task, args.steps))
+        full_rate, physics_rate_ = statistics.median(full), statistics.median(physics)
+        tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two_process_rate(task, args.steps),
+                       "vs_physics_only": physics_rate_ / full_rate}
+    result = {"tasks": tasks, "reset_rss_growth_mb": reset_rss_growth_mb(args.resets), "resets": args.resets,
+              "steps": args.steps, "command": "python benchmarks/bench_envs.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+              "machine": machine_info()}
+    print("| task | env steps/s (1 process) | env steps/s (2 processes, total) | full step / physics-only step |")
+    print("|---|---|---|---|")
+    for task, r in tasks.items():
+        print(f"| {task} | {r['steps_per_s']:.0f} | {r['steps_per_s_2proc']:.0f} | {r['vs_physics_only']:.2f} |")
+    print(f"\nmemory growth over {args.resets} resets through all laptops: {result['reset_rss_growth_mb']:.1f} MB")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
+if __name__ == "__main__":
+    main()

@@ -54,7 +54,8 @@ class PointNetEncoder(nn.Module):
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
-        """Truncated-normal weights (std 0.02, cut at +-2 std as timm's default), zero biases."""
+        """Truncated-normal weights (std 0.02; DexArt's call, whose default cut at +-2 is absolute,
+        i.e. 100 std: in effect a normal), zero biases."""
         for module in self.mlp:
             if isinstance(module, nn.Linear):
                 nn.init.trunc_normal_(module.weight, std=0.02)

@@ -72,13 +72,17 @@ class EpisodeInfo(gym.Wrapper):
         return info
 
 
-def make_env(task: str, *, point_noise: bool = True, camera_noise: bool = True, **env_kwargs) -> TransformedEnv:
-    """The training / evaluation env of ``task``; ``env_kwargs`` go to the gymnasium env
-    (split, object_names, num_points, imagination, randomize, render_mode, ...)."""
+def make_env(task: str, *, seed: int | None = None, point_noise: bool = True, camera_noise: bool = True,
+             **env_kwargs) -> TransformedEnv:
+    """The training / evaluation env of ``task``, seeded with ``seed`` if given; ``env_kwargs`` go to
+    the gymnasium env (split, object_names, num_points, imagination, randomize, max_episode_steps, ...)."""
     gym_env = EpisodeInfo(make_gym_env(task, point_noise=point_noise, camera_noise=camera_noise, **env_kwargs))
     env = GymWrapper(gym_env)
     env.set_info_dict_reader(default_info_dict_reader(list(INFO_SPECS), spec=dict(INFO_SPECS)))
-    return TransformedEnv(env, Compose(InitTracker(), StepCounter(), RewardSum()))
+    env = TransformedEnv(env, Compose(InitTracker(), StepCounter(), RewardSum()))
+    if seed is not None:
+        env.set_seed(seed)
+    return env
 
 
 def env_dims(env) -> tuple[int, int, int]:

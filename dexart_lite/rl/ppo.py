@@ -128,28 +128,27 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError(f"frames_per_batch ({cfg.frames_per_batch}) must be a multiple of workers ({cfg.workers})")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
         raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
+    if cfg.backend == "ray" and importlib.util.find_spec("ray") is None:
+        raise RuntimeError("the ray backend needs Ray, an optional extra: pip install '.[distributed]' "
+                           "(or pip install 'dexart_lite[distributed]')")
 
 
-def make_collector(cfg: PPOConfig, env_fn, policy, total_frames: int):
-    """The collector of ``cfg.backend``; each worker builds its own env with ``env_fn``."""
+def make_collector(cfg: PPOConfig, env_fns: list, policy, total_frames: int):
+    """The collector of ``cfg.backend``; worker ``i`` builds its own env with ``env_fns[i]``."""
     from torchrl.collectors import Collector, MultiSyncCollector
 
     common = dict(frames_per_batch=cfg.frames_per_batch, total_frames=total_frames)
     if cfg.backend == "process" and cfg.workers <= 1:
-        return Collector(env_fn, policy, **common)
+        return Collector(env_fns[0], policy, **common)
     if cfg.backend == "process":  # num_threads: keep this process's torch threads for the update
-        return MultiSyncCollector([env_fn] * cfg.workers, policy, num_threads=torch.get_num_threads(), **common)
+        return MultiSyncCollector(env_fns, policy, num_threads=torch.get_num_threads(), **common)
     if cfg.backend == "distributed":
         from torchrl.collectors.distributed import DistributedCollector
 
-        return DistributedCollector([env_fn] * cfg.workers, policy, launcher="mp", sync=True,
-                                    tcp_port=str(cfg.tcp_port), **common)
-    if importlib.util.find_spec("ray") is None:
-        raise RuntimeError("the ray backend needs Ray, an optional extra: pip install '.[distributed]' "
-                           "(or pip install 'dexart_lite[distributed]')")
-    from torchrl.collectors.distributed import RayCollector
+        return DistributedCollector(env_fns, policy, launcher="mp", sync=True, tcp_port=str(cfg.tcp_port), **common)
+    from torchrl.collectors.distributed import RayCollector  # cfg.backend == "ray", checked by validate
 
-    return RayCollector([env_fn] * cfg.workers, policy, sync=True, remote_configs={"num_cpus": 1},
+    return RayCollector(env_fns, policy, sync=True, remote_configs={"num_cpus": 1},
                         ray_init_config={"address": cfg.ray_address} if cfg.ray_address else None, **common)
 
 
@@ -241,63 +240,68 @@ def train(cfg: PPOConfig) -> dict:
             "frames": frames_done, "batches": batches, "history": history,
             "dims": {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim}})
 
-    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass)
+    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass).
+    # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed
+    # the envs because DistributedCollector.set_seed fails in torchrl 0.14.1.
     remaining = cfg.frames - frames_done
     collector = None
     if remaining > 0:
-        collector = make_collector(cfg, env_fn, actor_critic, total_frames=remaining)
-        collector.set_seed(cfg.seed + 1000 * batches)
+        env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i) for i in range(max(cfg.workers, 1))]
+        collector = make_collector(cfg, env_fns, actor_critic, total_frames=remaining)
     logger = CSVLogger(exp_name="log", log_dir=str(out))
     bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
                disable=not cfg.progress, desc=f"PPO {cfg.task}")
     tick = time.perf_counter()
-    for data in collector or []:
-        collected = time.perf_counter()
-        n = data.numel()
+    try:  # shut the workers down on errors too
+        for data in collector or []:
+            collected = time.perf_counter()
+            data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
+            n = data.numel()
 
-        # ---- advantages: GAE over time (the last batch dimension), once per batch as SB3
-        with torch.no_grad():
-            add_next_values(data, value_operator)
-            gae(data)
-        flat = data.reshape(-1).select(*BATCH_KEYS)
+            # ---- advantages: GAE over time (the last batch dimension), once per batch as SB3
+            with torch.no_grad():
+                add_next_values(data, value_operator)
+                gae(data)
+            flat = data.reshape(-1).select(*BATCH_KEYS)
 
-        # ---- PPO epochs over shuffled minibatches
-        sums = dict.fromkeys(LOSS_KEYS, 0.0)
-        steps = 0
-        for _ in range(cfg.epochs):
-            for idx in torch.randperm(n).split(cfg.minibatch):
-                loss_td = loss_module(flat[idx])
-                loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
-                optimizer.zero_grad()
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_(trainable, cfg.max_grad_norm)
-                optimizer.step()
-                for key in LOSS_KEYS:
-                    sums[key] += float(loss_td[key])
-                steps += 1
-        collector.update_policy_weights_()
-        updated = time.perf_counter()
+            # ---- PPO epochs over shuffled minibatches
+            sums = dict.fromkeys(LOSS_KEYS, 0.0)
+            steps = 0
+            for _ in range(cfg.epochs):
+                for idx in torch.randperm(n).split(cfg.minibatch):
+                    loss_td = loss_module(flat[idx])
+                    loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
+                    optimizer.zero_grad()
+                    loss.backward()
+                    torch.nn.utils.clip_grad_norm_(trainable, cfg.max_grad_norm)
+                    optimizer.step()
+                    for key in LOSS_KEYS:
+                        sums[key] += float(loss_td[key].detach())
+                    steps += 1
+            collector.update_policy_weights_()
+            updated = time.perf_counter()
 
-        # ---- logging
-        frames_done += n
-        batches += 1
-        row = {"frames": frames_done, "batch": batches, **batch_stats(data),
-               **{k: v / steps for k, v in sums.items()},
-               "log_std": float(action_log_std(actor_critic).mean()),
-               "collect_s": collected - tick, "update_s": updated - collected,
-               "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
-               "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
-        history.append(row)
-        logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
-        bar.update(n)
-        bar.set_postfix(ret=f"{row['episode_return']:.1f}", succ=f"{row['success_rate']:.2f}",
-                        fps=f"{row['fps']:.0f}")
-        if batches % cfg.checkpoint_every == 0:
-            checkpoint()
-        tick = time.perf_counter()
-    bar.close()
-    if collector is not None:
-        collector.shutdown()
+            # ---- logging
+            frames_done += n
+            batches += 1
+            row = {"frames": frames_done, "batch": batches, **batch_stats(data),
+                   **{k: v / steps for k, v in sums.items()},
+                   "log_std": float(action_log_std(actor_critic).mean()),
+                   "collect_s": collected - tick, "update_s": updated - collected,
+                   "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
+                   "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
+            history.append(row)
+            logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
+            bar.update(n)
+            bar.set_postfix(ret=f"{row['episode_return']:.1f}", succ=f"{row['success_rate']:.2f}",
+                            fps=f"{row['fps']:.0f}")
+            if batches % cfg.checkpoint_every == 0:
+                checkpoint()
+            tick = time.perf_counter()
+    finally:
+        bar.close()
+        if collector is not None:
+            collector.shutdown()
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     ckpt = checkpoint()
@@ -340,10 +344,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             parser.add_argument(flag, type=kind, default=None, help=helptext)
 
 
-def run(args: argparse.Namespace) -> int:
+def config_from_args(args: argparse.Namespace) -> PPOConfig:
+    """The preset named by ``--preset`` with every option given on the command line applied."""
     overrides = {f.name: getattr(args, f.name) for f in fields(PPOConfig) if getattr(args, f.name) is not None}
-    cfg = preset(args.preset, **overrides)
-    result = train(cfg)
+    return preset(args.preset, **overrides)
+
+
+def run(args: argparse.Namespace) -> int:
+    result = train(config_from_args(args))
     print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
     for split, res in result["eval"].items():
         print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")

@@ -1,0 +1,234 @@
+"""The torchrl env, PPO training (tiny budgets), checkpoints, evaluation and the collection backends."""
+
+import dataclasses
+import importlib.util
+import json
+import math
+import shutil
+import socket
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from gymnasium import spaces
+from torchrl.collectors import Collector
+from torchrl.envs import check_env_specs
+from torchrl.objectives.value import GAE
+
+from dexart_lite import cli
+from dexart_lite import objects as objects_lib
+from dexart_lite.models.actor_critic import encoder_of, make_actor_critic
+from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
+from dexart_lite.rl import ppo
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+from dexart_lite.rl.env import EpisodeInfo, env_dims, make_env
+from dexart_lite.rl.evaluate import evaluate
+
+# tiny: 32 observed points (+96 imagined), 20-step episodes, a few hundred frames per batch
+TINY = dict(task="laptop", num_points=32, max_episode_steps=20, minibatch=200, epochs=2, eval_episodes=1,
+            checkpoint_every=1, progress=False)
+
+
+def tiny_config(tmp_path, **overrides) -> ppo.PPOConfig:
+    return dataclasses.replace(ppo.PPOConfig(), **{**TINY, "out": str(tmp_path / "run"), **overrides})
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A 1,200-frame PPO run with 2 worker processes, evaluated on seen and unseen objects."""
+    cfg = tiny_config(tmp_path_factory.mktemp("ppo"), frames=1200, frames_per_batch=600, workers=2)
+    return cfg, ppo.train(cfg)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# ------------------------------------------------------------------ env
+def test_training_env_passes_check_env_specs():
+    env = make_env("laptop", num_points=32, max_episode_steps=5)
+    check_env_specs(env, seed=0)
+    assert env_dims(env) == (32 + 96, 32, 22)
+    rollout = env.rollout(8, break_when_any_done=False)
+    assert rollout["next", "truncated"].squeeze(-1).tolist()[4]  # the 5-step time limit
+    assert rollout["next", "stage"].min() >= 1 and rollout["next", "stage"].max() <= 3
+    env.close()
+
+
+class _Scripted(gym.Env):
+    """Success at step 2 only, stages 1, 3, 2, ...: for the episode bookkeeping."""
+
+    observation_space = spaces.Dict({"state": spaces.Box(-1, 1, (1,), np.float32)})
+    action_space = spaces.Box(-1, 1, (1,), np.float32)
+
+    def reset(self, *, seed=None, options=None):
+        self.t = 0
+        return {"state": np.zeros(1, np.float32)}, {"success": False, "stage": 1, "progress": 0.0}
+
+    def step(self, action):
+        self.t += 1
+        info = {"success": self.t == 2, "stage": 3 if self.t == 2 else 2, "progress": 0.1 * self.t}
+        return {"state": np.zeros(1, np.float32)}, 0.0, False, self.t >= 4, info
+
+
+def test_episode_info_counts_success_at_any_step_and_the_highest_stage():
+    env = EpisodeInfo(_Scripted())
+    obs, info = env.reset()
+    assert not info["episode_success"] and info["episode_max_stage"] == 1
+    seen = [env.step(np.zeros(1))[-1] for _ in range(4)]
+    assert [bool(i["success"]) for i in seen] == [False, True, False, False]
+    assert [bool(i["episode_success"]) for i in seen] == [False, True, True, True]
+    assert [int(i["episode_max_stage"]) for i in seen] == [2, 3, 3, 3]
+    assert env.reset()[1]["episode_success"] == np.bool_(False)
+    first, second = env.step(np.zeros(1))[0], env.step(np.zeros(1))[0]
+    assert first is not second  # a new dict per step (torchrl edits the dict it receives)
+
+
+def test_values_from_the_rollout_give_the_same_advantages_as_gae_with_a_value_network():
+    torch.manual_seed(0)
+    env = make_env("laptop", num_points=32, max_episode_steps=15)
+    actor_critic = make_actor_critic(32, 22, "small")
+    collector = Collector(env, actor_critic, frames_per_batch=40, total_frames=40)
+    data = next(iter(collector))
+    collector.shutdown()
+    assert data["next", "truncated"].sum() == 2  # two time limits inside the batch
+    reference = data.exclude("state_value").clone()  # the reference computes every value itself
+    GAE(gamma=0.99, lmbda=0.95, value_network=actor_critic.get_value_operator())(reference)
+    with torch.no_grad():
+        ppo.add_next_values(data, actor_critic.get_value_operator())
+        GAE(gamma=0.99, lmbda=0.95, value_network=None)(data)
+    assert torch.allclose(data["advantage"], reference["advantage"], atol=1e-5)
+    assert torch.allclose(data["value_target"], reference["value_target"], atol=1e-5)
+
+
+# ------------------------------------------------------------------ config and CLI
+def test_faithful_defaults_are_dexarts_ppo_settings():
+    cfg = ppo.PPOConfig()
+    assert (cfg.lr, cfg.gamma, cfg.lmbda, cfg.clip_epsilon, cfg.epochs, cfg.minibatch) == (1e-4, 0.99, 0.95, 0.2, 10, 500)
+    assert (cfg.vf_coef, cfg.max_grad_norm, cfg.adam_eps, cfg.entropy_coef) == (0.5, 0.5, 1e-5, 0.0)
+    assert cfg.normalize_advantage and cfg.frames_per_batch == 20_000 and cfg.encoder == "small"
+
+
+def test_command_line_options_override_the_preset():
+    parser = cli.argparse.ArgumentParser()
+    ppo.add_arguments(parser)
+    args = parser.parse_args(["--preset", "cpu", "--task", "bucket", "--frames", "5000", "--no-progress",
+                              "--freeze-encoder", "--pretrained", "enc.pt", "--lr", "3e-4"])
+    cfg = ppo.config_from_args(args)
+    assert (cfg.task, cfg.frames, cfg.progress, cfg.freeze_encoder, cfg.pretrained, cfg.lr) == \
+        ("bucket", 5000, False, True, "enc.pt", 3e-4)
+    assert cfg.frames_per_batch == ppo.PRESETS["cpu"]["frames_per_batch"] and cfg.epochs == ppo.PRESETS["cpu"]["epochs"]
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"encoder": "huge"}, "valid choices: small, medium, large"),
+    ({"backend": "mpi"}, "valid choices: process, distributed, ray"),
+    ({"frames_per_batch": 301, "workers": 2}, "multiple of workers"),
+    ({"epochs": 0}, "epochs must be >= 1"),
+])
+def test_bad_configs_are_rejected_before_anything_starts(tmp_path, overrides, message):
+    with pytest.raises(ValueError, match=message):
+        ppo.train(tiny_config(tmp_path, **overrides))
+
+
+@pytest.mark.skipif(importlib.util.find_spec("ray") is not None, reason="ray is installed")
+def test_ray_backend_without_ray_names_the_extra(tmp_path, capsys):
+    code = cli.main(["train", "--backend", "ray", "--out", str(tmp_path / "r"), "--frames", "100"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "pip install '.[distributed]'" in err and len(err.splitlines()) == 1
+
+
+# ------------------------------------------------------------------ training, checkpoint, evaluation
+def test_tiny_run_gives_finite_losses_logs_and_a_report(tiny_run):
+    cfg, result = tiny_run
+    history = result["history"]
+    assert [h["frames"] for h in history] == [600, 1200] and result["frames"] == 1200
+    for row in history:
+        for key in ppo.LOSS_KEYS + ("collect_fps", "update_fps", "log_std"):
+            assert math.isfinite(row[key]), key
+        assert row["episodes"] >= 1 and 0.0 <= row["success_rate"] <= 1.0
+        assert abs(row["stage1_frac"] + row["stage2_frac"] + row["stage3_frac"] - 1.0) < 1e-5
+    out = result["log_dir"]
+    for name in ("episode_return", "success_rate", "loss_objective", "kl_approx", "clip_fraction",
+                 "collect_fps", "update_fps", "stage3_frac"):
+        lines = open(f"{out}/scalars/{name}.csv").read().splitlines()
+        assert len(lines) == 2 and lines[-1].startswith("1200,")
+    report = open(result["report"]).read()
+    assert "learning_curve.png" in report and "| unseen | **all** |" in report
+    assert set(result["eval"]) == {"seen", "unseen"}
+    assert result["eval"]["unseen"]["episodes"] == len(objects_lib.list_objects("laptop", "unseen"))
+
+
+def test_checkpoint_reloads_and_evaluates_from_the_command_line(tiny_run, tmp_path, capsys):
+    cfg, result = tiny_run
+    payload = load_checkpoint(result["checkpoint"])
+    assert payload["frames"] == 1200 and payload["config"]["num_points"] == 32
+    out = tmp_path / "eval.json"
+    code = cli.main(["eval", "--ckpt", result["checkpoint"], "--split", "unseen", "--episodes-per-object", "1",
+                     "--seed", "7", "--json", str(out)])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "| unseen | **all** |" in printed
+    res = json.loads(out.read_text())
+    names = [o.name for o in objects_lib.list_objects("laptop", "unseen")]
+    assert list(res["objects"]) == names and res["episodes"] == len(names)
+    assert 0.0 <= res["success_rate"] <= 1.0 and 1.0 <= res["mean_max_stage"] <= 3.0
+    # same seed, same result: deterministic actions, seeded env
+    again = evaluate(actor_critic_from_checkpoint(payload), "laptop", "unseen", 1, 7,
+                     {"num_points": 32, "max_episode_steps": 20})
+    assert again["objects"] == res["objects"]
+
+
+def test_resume_continues_the_run(tiny_run, tmp_path):
+    cfg, result = tiny_run
+    run_dir = tmp_path / "copy"
+    shutil.copytree(cfg.out, run_dir)
+    with pytest.raises(ValueError, match="already holds a run; pass --resume"):
+        ppo.train(dataclasses.replace(cfg, out=str(run_dir), frames=1500))
+    resumed = ppo.train(dataclasses.replace(cfg, out=str(run_dir), frames=1500, frames_per_batch=300, workers=0,
+                                            resume=True, eval_episodes=0))
+    assert [h["frames"] for h in resumed["history"]] == [600, 1200, 1500]
+    assert resumed["history"][:2] == result["history"]
+    assert load_checkpoint(resumed["checkpoint"])["batches"] == 3
+
+
+def test_pretrained_encoder_is_loaded_and_can_be_frozen(tmp_path):
+    encoder = PointNetEncoder("small")
+    torch.nn.init.normal_(encoder.mlp[2].weight)
+    path = save_encoder(encoder, tmp_path / "enc.pt")
+    cfg = tiny_config(tmp_path, frames=200, frames_per_batch=200, workers=0, eval_episodes=0,
+                      pretrained=str(path), freeze_encoder=True)
+    result = ppo.train(cfg)
+    trained = actor_critic_from_checkpoint(load_checkpoint(result["checkpoint"]))
+    for a, b in zip(encoder_of(trained).state_dict().values(), encoder.state_dict().values()):
+        assert torch.equal(a, b)
+    assert not torch.equal(trained.module[0].module.state_mlp[0].weight,
+                           make_actor_critic(32, 22).module[0].module.state_mlp[0].weight)
+
+
+def test_distributed_backend_on_loopback(tmp_path):
+    cfg = tiny_config(tmp_path, frames=400, frames_per_batch=200, workers=2, backend="distributed",
+                      eval_episodes=0, tcp_port=free_port())
+    result = ppo.train(cfg)
+    assert [h["frames"] for h in result["history"]] == [200, 400]
+    assert all(math.isfinite(h["loss_critic"]) for h in result["history"])
+
+
+# ------------------------------------------------------------------ one-line errors
+def test_missing_or_corrupt_checkpoints_give_one_line_errors(tmp_path, capsys):
+    assert cli.main(["eval", "--ckpt", str(tmp_path / "none.pt")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "checkpoint not found" in err and len(err.splitlines()) == 1
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"PK\x03\x04 not really a zip" * 20)
+    assert cli.main(["eval", "--ckpt", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not a readable checkpoint" in err and len(err.splitlines()) == 1
+    torch.save({"something": 1}, tmp_path / "other.pt")
+    assert cli.main(["eval", "--ckpt", str(tmp_path / "other.pt")]) == 2
+    assert "not a dexart_lite PPO checkpoint" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError, match="pretrained encoder not found"):
+        ppo.train(tiny_config(tmp_path, pretrained=str(tmp_path / "none.pt")))

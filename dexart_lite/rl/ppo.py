@@ -80,6 +80,7 @@ class PPOConfig:
     seed: int = 0
     out: str = field(default="runs/ppo", metadata={"help": "output folder (checkpoint, logs, report)"})
     checkpoint_every: int = field(default=5, metadata={"help": "save a checkpoint every N batches"})
+    max_minutes: float | None = field(default=None, metadata={"help": "stop training after the batch that crosses this many minutes"})
     resume: bool = field(default=False, metadata={"help": "continue the run in --out from its checkpoint"})
     pretrained: str | None = field(default=None, metadata={"help": "encoder file (save_encoder) loaded strictly into the trunk"})
     freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
@@ -297,6 +298,8 @@ def train(cfg: PPOConfig) -> dict:
                             fps=f"{row['fps']:.0f}")
             if batches % cfg.checkpoint_every == 0:
                 checkpoint()
+            if cfg.max_minutes is not None and time.perf_counter() - start > 60 * cfg.max_minutes:
+                break
             tick = time.perf_counter()
     finally:
         bar.close()
@@ -340,7 +343,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         if isinstance(f.default, bool):
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
         else:
-            kind = type(f.default) if f.default is not None else str
+            kind = {"int": int, "float": float}.get(str(f.type).split(" |")[0], str)  # "float | None" -> float
             parser.add_argument(flag, type=kind, default=None, help=helptext)
 
 

@@ -1,0 +1,89 @@
+"""Learning evidence: one real PPO run, evaluated on seen and unseen objects, with its curve.
+
+    python benchmarks/bench_learning.py --task laptop --frames 1000000
+    python benchmarks/bench_learning.py --task laptop --frames 1000000 --resume   # continue an interrupted run
+
+Trains with ``dexart_lite.rl.ppo.train`` (the faithful preset unless ``--preset cpu``) into
+``--out`` (default ``runs/learning_<task>``), then writes ``benchmarks/results/learning_<task>.json``
+(frames, seen_success, unseen_success, wall_time_s, command, machine, and the details) and copies
+the learning curve to ``benchmarks/results/learning_<task>.png``. The original paper's numbers
+without pretraining are stored beside ours for comparison (DexArt Table 2; the curves of Fig. 6-8
+stop at about 10M / 40M / 15M / 8M frames for faucet / bucket / laptop / toilet).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import dexart_lite
+from dexart_lite.rl import ppo
+from dexart_lite.utils import fast_mode, machine_info
+
+RESULTS = Path(__file__).parent / "results"
+# DexArt Table 2, no pre-training, success seen / unseen (mean over 3 seeds)
+PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (0.81, 0.41), "toilet": (0.71, 0.46)}
+PAPER_FRAMES = {"faucet": 10e6, "bucket": 40e6, "laptop": 15e6, "toilet": 8e6}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    parser.add_argument("--frames", type=int, default=1_000_000)
+    parser.add_argument("--preset", default="faithful", choices=list(ppo.PRESETS))
+    parser.add_argument("--encoder", default="small")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--eval-episodes", type=int, default=10, help="per object, seen and unseen (DexArt: 100)")
+    parser.add_argument("--out", type=Path, help="training folder (default runs/learning_<task>)")
+    parser.add_argument("--results", type=Path, default=RESULTS, help="where the JSON and PNG go")
+    parser.add_argument("--resume", action="store_true")
+    args = parser.parse_args(argv)
+    out = args.out or Path("runs") / f"learning_{args.task}"
+    overrides = {}
+    if fast_mode():  # a smoke run of the script itself, not evidence
+        overrides = dict(frames_per_batch=400, minibatch=200, epochs=1, num_points=64, max_episode_steps=20)
+        args.frames, args.eval_episodes = min(args.frames, 800), 1
+        if args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
+            args.results = out / "results"
+    cfg = ppo.preset(args.preset, task=args.task, frames=args.frames, encoder=args.encoder, workers=args.workers,
+                     seed=args.seed, eval_episodes=args.eval_episodes, out=str(out), resume=args.resume,
+                     progress=not fast_mode(), **overrides)
+    result = ppo.train(cfg)
+
+    args.results.mkdir(parents=True, exist_ok=True)
+    curve = args.results / f"learning_{args.task}.png"
+    shutil.copyfile(result["curve"], curve)
+    seen, unseen = result["eval"]["seen"], result["eval"]["unseen"]
+    history = result["history"]
+    summary = {
+        "task": args.task, "frames": result["frames"],
+        "seen_success": seen["success_rate"], "unseen_success": unseen["success_rate"],
+        "seen_mean_max_stage": seen["mean_max_stage"], "unseen_mean_max_stage": unseen["mean_max_stage"],
+        "wall_time_s": history[-1]["wall_s"] if history else 0.0,
+        "wall_time_with_eval_s": result["wall_time_s"],
+        "eval_episodes_per_object": args.eval_episodes, "eval_seed": cfg.eval_seed,
+        "paper_no_pretraining": {"seen": PAPER_NO_PRETRAIN[args.task][0], "unseen": PAPER_NO_PRETRAIN[args.task][1],
+                                 "frames": PAPER_FRAMES[args.task]},
+        "collect_fps": result["frames"] / max(sum(h["collect_s"] for h in history), 1e-9),
+        "update_fps": result["frames"] / max(sum(h["update_s"] for h in history), 1e-9),
+        "curve": curve.name, "preset": args.preset, "config": {k: v for k, v in vars(cfg).items()},
+        "last_batches": history[-5:], "seen": seen, "unseen": unseen,
+        "command": "python benchmarks/bench_learning.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "machine": machine_info(), "fast_mode": fast_mode(),
+    }
+    path = args.results / f"learning_{args.task}.json"
+    path.write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"| {args.task} | frames | seen | unseen |\n|---|---|---|---|")
+    print(f"| dexart_lite ({args.preset}) | {result['frames']:,} | {seen['success_rate']:.2f} | {unseen['success_rate']:.2f} |")
+    paper = PAPER_NO_PRETRAIN[args.task]
+    print(f"| DexArt paper, no pretraining | ~{PAPER_FRAMES[args.task] / 1e6:.0f}M | {paper[0]:.2f} | {paper[1]:.2f} |")
+    print(f"wrote {path} and {curve}")
+    return summary
+
+
+if __name__ == "__main__":
+    main()

@@ -149,7 +149,7 @@ def test_every_method_loss_decreases_on_a_fixed_batch(method, dam, objects_data)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
-        losses.append(float(loss))
+        losses.append(float(loss.detach()))
     assert losses[-1] < losses[0], losses
 
 

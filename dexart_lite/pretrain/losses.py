@@ -17,9 +17,18 @@ REVERSE_WEIGHT = 0.1
 
 
 def chamfer_terms(a: torch.Tensor, b: torch.Tensor, sqrt: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
-    """a (B, N, 3), b (B, M, 3) -> (mean nearest distance a->b (B,), b->a (B,))."""
-    d2 = torch.cdist(a, b, compute_mode="donot_use_mm_for_euclid_dist").square()  # (B, N, M) m^2
-    a_to_b, b_to_a = d2.min(dim=2).values, d2.min(dim=1).values  # (B, N), (B, M)
+    """a (B, N, 3), b (B, M, 3) -> (mean nearest distance a->b (B,), b->a (B,)).
+
+    The gradient of a min reaches only the nearest pair, so the (B, N, M) distance matrix is
+    computed without autograd, only to find the nearest neighbours, and the distances of those
+    pairs are recomputed with autograd: the same values and gradients as differentiating through
+    the matrix, about 20x cheaper on a CPU (backward through ``cdist`` dominates otherwise).
+    """
+    with torch.no_grad():
+        d2 = torch.cdist(a, b).square()  # (B, N, M) m^2
+        nearest_in_b, nearest_in_a = d2.argmin(dim=2), d2.argmin(dim=1)  # (B, N), (B, M)
+    a_to_b = (a - torch.gather(b, 1, nearest_in_b.unsqueeze(-1).expand(-1, -1, 3))).square().sum(-1)  # (B, N)
+    b_to_a = (b - torch.gather(a, 1, nearest_in_a.unsqueeze(-1).expand(-1, -1, 3))).square().sum(-1)  # (B, M)
     if sqrt:
         a_to_b, b_to_a = a_to_b.clamp_min(1e-12).sqrt(), b_to_a.clamp_min(1e-12).sqrt()
     return a_to_b.mean(dim=1), b_to_a.mean(dim=1)

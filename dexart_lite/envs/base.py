@@ -29,10 +29,10 @@ from dexart_lite.camera import CameraPose
 from dexart_lite.objects import ObjectInfo
 from dexart_lite.robot import ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, Robot, RobotState
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
+from dexart_lite.registration import HORIZON  # control steps per episode (the registered max_episode_steps)
 from dexart_lite.sim import BASE_LINK, BulletSim
 from dexart_lite.utils import check_choice
 
-from dexart_lite.registration import HORIZON  # noqa: E402  (control steps per episode)
 GROUPS = tuple(FINGER_GROUPS)  # ("thumb", "index", "middle", "ring", "palm")
 CONTACT_IMPULSE = 0.01  # N*s summed over a link pair's contact points (DexArt), i.e. 2.5 N at dt 0.004
 MAX_JOINT_SPEED = 99.0  # rad/s; PyBullet clamps joint speeds at 100: reaching it means the solver lost control

@@ -5,8 +5,9 @@
 
 Trains with ``dexart_lite.rl.ppo.train`` (the faithful preset unless ``--preset cpu``) into
 ``--out`` (default ``runs/learning_<task>``), then writes ``benchmarks/results/learning_<task>.json``
-(frames, seen_success, unseen_success, wall_time_s, command, machine, and the details) and copies
-the learning curve to ``benchmarks/results/learning_<task>.png``. The original paper's numbers
+(frames, seen_success, unseen_success, wall_time_s, command, machine, the curve's points and the
+details) and copies the learning curve to ``benchmarks/results/learning_<task>.png``; ``--tag T``
+names them ``learning_<task>_T.*`` instead (e.g. the encoder-size ablation of tutorial 04). The original paper's numbers
 without pretraining are stored beside ours for comparison (DexArt Table 2; the curves of Fig. 6-8
 stop at about 10M / 40M / 15M / 8M frames for faucet / bucket / laptop / toilet).
 """
@@ -41,8 +42,10 @@ def main(argv=None) -> dict:
     parser.add_argument("--out", type=Path, help="training folder (default runs/learning_<task>)")
     parser.add_argument("--results", type=Path, default=RESULTS, help="where the JSON and PNG go")
     parser.add_argument("--resume", action="store_true")
+    parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json")
     args = parser.parse_args(argv)
-    out = args.out or Path("runs") / f"learning_{args.task}"
+    name = f"learning_{args.task}" + (f"_{args.tag}" if args.tag else "")
+    out = args.out or Path("runs") / name
     overrides = {}
     if fast_mode():  # a smoke run of the script itself, not evidence
         overrides = dict(frames_per_batch=400, minibatch=200, epochs=1, num_points=64, max_episode_steps=20)
@@ -55,7 +58,7 @@ def main(argv=None) -> dict:
     result = ppo.train(cfg)
 
     args.results.mkdir(parents=True, exist_ok=True)
-    curve = args.results / f"learning_{args.task}.png"
+    curve = args.results / f"{name}.png"
     shutil.copyfile(result["curve"], curve)
     seen, unseen = result["eval"]["seen"], result["eval"]["unseen"]
     history = result["history"]
@@ -71,11 +74,13 @@ def main(argv=None) -> dict:
         "collect_fps": result["frames"] / max(sum(h["collect_s"] for h in history), 1e-9),
         "update_fps": result["frames"] / max(sum(h["update_s"] for h in history), 1e-9),
         "curve": curve.name, "preset": args.preset, "config": {k: v for k, v in vars(cfg).items()},
-        "last_batches": history[-5:], "seen": seen, "unseen": unseen,
+        "curve_points": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "stage3_frac", "wall_s")}
+                         for h in history],
+        "last_batches": history[-3:], "seen": seen, "unseen": unseen,
         "command": "python benchmarks/bench_learning.py " + " ".join(argv if argv is not None else sys.argv[1:]),
         "machine": machine_info(), "fast_mode": fast_mode(),
     }
-    path = args.results / f"learning_{args.task}.json"
+    path = args.results / f"{name}.json"
     path.write_text(json.dumps(summary, indent=2) + "\n")
     print(f"| {args.task} | frames | seen | unseen |\n|---|---|---|---|")
     print(f"| dexart_lite ({args.preset}) | {result['frames']:,} | {seen['success_rate']:.2f} | {unseen['success_rate']:.2f} |")

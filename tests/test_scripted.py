@@ -55,3 +55,19 @@ def test_faucet_solve_reports_rates():
     result = solve("faucet", "seen", episodes_per_object=1, object_names=["faucet_fa860352d6"], progress=False)
     assert result["success_per_object"] == {"faucet_fa860352d6": 1.0}
     assert result["success_rate"] == 1.0 and result["mean_max_stage"] == 3.0
+
+
+# ----------------------------------------------------------------------------- bucket
+@pytest.mark.parametrize("name, seed", [
+    ("bucket_413287b6c4", 1),   # seen, B: tapered
+    ("bucket_fc5ca27e47", 0),   # unseen, C: square pail, U-bail
+])
+def test_bucket_solver_succeeds(name, seed):
+    success, stages = run_episode("bucket", name, seed)
+    assert success, f"{name}: stages reached {first_steps(stages)}"
+
+
+def test_bucket_stages_go_1_2_3():
+    success, stages = run_episode("bucket", "bucket_222c59ab44", 3)
+    assert success
+    assert first_steps(stages) == [1, 2, 3]

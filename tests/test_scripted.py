@@ -57,6 +57,42 @@ def test_faucet_solve_reports_rates():
     assert result["success_rate"] == 1.0 and result["mean_max_stage"] == 3.0
 
 
+# ----------------------------------------------------------------------------- laptop and toilet
+def lid_stages_go_1_2_3(task: str, name: str, seed: int) -> None:
+    """Reach (palm farther than 0.2 m laptop / 0.1 m toilet from the lid's grasp point), contact,
+    manipulation: a lid episode starts in stage 1 and ends in stage 3 (success terminates it)."""
+    success, stages = run_episode(task, name, seed)
+    assert success
+    assert first_steps(stages) == [1, 2, 3]
+    assert stages[0] == 1 and stages[-1] == 3
+
+
+@pytest.mark.parametrize("name, seed", [
+    ("laptop_11cbb00f39", 0),   # seen, A: sharp slab, lid turned -58 degrees
+    ("laptop_740e7c6eca", 1),   # unseen, C: wedge base, hinge barrel
+])
+def test_laptop_solver_succeeds(name, seed):
+    success, stages = run_episode("laptop", name, seed)
+    assert success, f"{name}: stages reached {first_steps(stages)}"
+
+
+def test_laptop_stages_go_1_2_3():
+    lid_stages_go_1_2_3("laptop", "laptop_cfd3b8b3b2", 1)
+
+
+@pytest.mark.parametrize("name, seed", [
+    ("toilet_de041d761d", 1004),  # seen, A: lid edge 0.27 m in front of the robot base
+    ("toilet_bf73de51fa", 0),     # unseen, C: squarish, tankless
+])
+def test_toilet_solver_succeeds(name, seed):
+    success, stages = run_episode("toilet", name, seed)
+    assert success, f"{name}: stages reached {first_steps(stages)}"
+
+
+def test_toilet_stages_go_1_2_3():
+    lid_stages_go_1_2_3("toilet", "toilet_2ecd7e3a4f", 1)
+
+
 # ----------------------------------------------------------------------------- bucket
 @pytest.mark.parametrize("name, seed", [
     ("bucket_413287b6c4", 1),   # seen, B: tapered

@@ -50,7 +50,7 @@ def epoch_seconds(method: str, data: datasets.PointCloudSet, encoder_size: str =
     size = pretrain.BATCH_SIZE[method]
 
     def step(batch) -> None:
-        loss = pretrain.batch_loss(method, encoder, head, batch, generator=generator)
+        loss, _ = pretrain.batch_loss(method, encoder, head, batch, generator=generator)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -73,8 +73,8 @@ def main(argv=None) -> int:
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
-    if fast_mode():
-        args.tasks, args.clouds, args.train_clouds = "laptop", 10, 64
+    if fast_mode():  # a smoke run of the script itself, not a measurement
+        args.tasks, args.objects, args.clouds, args.train_clouds = "laptop", 1, 5, 32
     torch.set_num_threads(args.threads)
     tasks = [t.strip() for t in args.tasks.split(",") if t.strip()]
     results = {"machine": machine_info(), "torch": torch.__version__, "dexart_lite": dexart_lite.__version__,

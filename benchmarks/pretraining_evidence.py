@@ -7,6 +7,8 @@ from scratch, and the PPO-fine-tuned encoder put back under the segmentation hea
     python benchmarks/pretraining_evidence.py ppo --task laptop --frames 100000 --seeds 0
     # 3. the fine-tuned encoder of the pretrained arm under the segmentation head it started with
     python benchmarks/pretraining_evidence.py after-ppo --task laptop --seed 0
+    # 4. the other methods: cls on the objects-only set, recon and simsiam on Laptop DAM
+    python benchmarks/pretraining_evidence.py methods --epochs 5
 
 Work files (datasets, runs) go to ``--root`` (default ``runs/pretrain``, not committed); the
 results (JSON, markdown tables, PNGs) to ``--results`` (default ``benchmarks/results/pretraining``).
@@ -23,7 +25,7 @@ from pathlib import Path
 
 import torch
 
-from dexart_lite.models.pointnet import load_encoder
+from dexart_lite.models.pointnet import PointNetEncoder, load_encoder
 from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.pretrain.figures import plot_segmentation
@@ -197,6 +199,46 @@ def run_after_ppo(args) -> int:
     return 0
 
 
+def run_methods(args) -> int:
+    """cls on the objects-only set; recon and simsiam on the task's DAM set (made by the ``seg`` step)."""
+    objects_root = args.root / "data" / "objects"
+    if not (objects_root / "unseen" / datasets.MANIFEST).exists():
+        datasets.generate_objects(datasets.ObjectsConfig(samples_per_object=args.object_samples, out=str(objects_root),
+                                                         seed=args.seed))
+    dam = dataset_dir(args.root, args.task)
+    if not (dam / "unseen" / datasets.MANIFEST).exists():
+        raise FileNotFoundError(f"{dam} missing: run the `seg` step for {args.task} first")
+    results = {}
+    for method, data in (("cls", objects_root), ("simsiam", objects_root), ("recon", dam), ("simsiam", dam)):
+        name = f"{method}_{'objects' if data == objects_root else args.task}"
+        out = args.root / name
+        if not (out / "metrics.json").exists():
+            pretrain.train(pretrain.PretrainConfig(method=method, data=str(data), out=str(out), epochs=args.epochs,
+                                                   seed=args.seed))
+        metrics = json.loads((out / "metrics.json").read_text())
+        results[name] = {k: metrics[k] for k in ("method", "kind", "train_clouds", "epochs", "seconds_per_epoch",
+                                                 "wall_seconds", "val", "test") if k in metrics}
+        if method == "simsiam":  # the k-NN probe with an untrained encoder: what the training adds
+            results[name]["knn_accuracy_untrained_val"] = untrained_knn(data, args.seed)
+        key = pretrain.MAIN_METRIC[method]
+        print(f"{name}: val {key} {metrics['val'].get(key)}, test {metrics.get('test', {}).get(key)}", flush=True)
+    args.results.mkdir(parents=True, exist_ok=True)
+    (args.results / "methods.json").write_text(json.dumps({"machine": machine_info(), "runs": results}, indent=2) + "\n")
+    return 0
+
+
+def untrained_knn(data_root: Path, seed: int) -> float:
+    """SimSiam's validation k-NN accuracy with a freshly initialised encoder (same bank and target)."""
+    torch.manual_seed(seed)
+    encoder = PointNetEncoder("small")
+    train_set, val_set = datasets.load_part(data_root, "train"), datasets.load_part(data_root, "val")
+    subset = train_set.subset(torch.randperm(len(train_set), generator=torch.Generator().manual_seed(0))[:pretrain.KNN_BANK])
+    by_category = pretrain.knn_target(train_set) == "category"
+    bank = (pretrain.encode_all(encoder, subset), subset.category if by_category else subset.object_index)
+    target = val_set.category if by_category else val_set.object_index
+    return pretrain.knn_accuracy(*bank, pretrain.encode_all(encoder, val_set), target)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, default=Path("runs/pretrain"), help="datasets and runs")
@@ -217,8 +259,13 @@ def main(argv=None) -> int:
     after = sub.add_parser("after-ppo", help="the PPO-fine-tuned encoder under the segmentation head")
     after.add_argument("--task", default="laptop")
     after.add_argument("--seed", type=int, default=0)
+    methods = sub.add_parser("methods", help="cls, recon and simsiam runs with their metrics")
+    methods.add_argument("--task", default="laptop")
+    methods.add_argument("--epochs", type=int, default=5)
+    methods.add_argument("--object-samples", type=int, default=datasets.DEFAULT_OBJECT_SAMPLES)
+    methods.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    return {"seg": run_seg, "ppo": run_ppo, "after-ppo": run_after_ppo}[args.step](args)
+    return {"seg": run_seg, "ppo": run_ppo, "after-ppo": run_after_ppo, "methods": run_methods}[args.step](args)
 
 
 if __name__ == "__main__":

@@ -145,7 +145,7 @@ def test_every_method_loss_decreases_on_a_fixed_batch(method, dam, objects_data)
     batch = next(pretrain.batches(data, 8))
     losses = []
     for _ in range(12):
-        loss = pretrain.batch_loss(method, encoder, head, batch, generator=torch.Generator().manual_seed(0))
+        loss, _ = pretrain.batch_loss(method, encoder, head, batch, generator=torch.Generator().manual_seed(0))
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -197,3 +197,17 @@ def test_cli_data_and_pretrain(dam, tmp_path, capsys):
     assert cli.main(["pretrain", "--data", str(tmp_path / "missing"), "--out", str(out / "bad")]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 3 and all(line.startswith("dexart-lite pretrain: error:") for line in errors)
+
+
+def test_bench_pretraining_smoke(tmp_path, monkeypatch):
+    import importlib.util
+    from pathlib import Path
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_pretraining.py"
+    spec = importlib.util.spec_from_file_location("bench_pretraining", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert bench.main(["--json", str(tmp_path / "bench.json"), "--threads", "1"]) == 0
+    results = json.loads((tmp_path / "bench.json").read_text())
+    assert set(results["methods"]) == set(pretrain.METHODS) and results["dam"]["laptop"]["ms_per_cloud"] > 0

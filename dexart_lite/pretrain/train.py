@@ -143,20 +143,22 @@ def simsiam_view(points: torch.Tensor, generator: torch.Generator) -> torch.Tens
 
 
 def batch_loss(method: str, encoder: PointNetEncoder, head: nn.Module, batch: dict, class_weights=None,
-               generator: torch.Generator | None = None) -> torch.Tensor:
-    """The training loss (a scalar) of one minibatch: ``batch`` holds points (B, N, 3), labels
-    (B, N) and category (B,)."""
+               generator: torch.Generator | None = None) -> tuple[torch.Tensor, object]:
+    """The training loss (a scalar) of one minibatch and the head's output (seg, cls: logits;
+    recon: (coarse, fine) points; simsiam: None). ``batch`` holds points (B, N, 3), labels (B, N)
+    and category (B,)."""
     points = batch["points"]
     if method == "seg":
         logits = segment_logits(encoder, head, points)  # (B, N, classes)
-        return F.cross_entropy(logits.flatten(0, 1), batch["labels"].flatten(), weight=class_weights)
+        return F.cross_entropy(logits.flatten(0, 1), batch["labels"].flatten(), weight=class_weights), logits
     if method == "cls":
-        return F.cross_entropy(head(encoder(points)), batch["category"])
+        logits = head(encoder(points))  # (B, categories)
+        return F.cross_entropy(logits, batch["category"]), logits
     if method == "recon":
-        coarse, fine = head(encoder(points))
-        return reconstruction_loss(coarse, fine, points)
+        coarse, fine = head(encoder(points))  # (B, K, 3), (B, F, 3)
+        return reconstruction_loss(coarse, fine, points), (coarse, fine)
     z1, z2 = encoder(simsiam_view(points, generator)), encoder(simsiam_view(points, generator))  # (B, 256) each
-    return simsiam_loss(head(z1), head(z2), z1, z2)
+    return simsiam_loss(head(z1), head(z2), z1, z2), None
 
 
 def batches(data: datasets.PointCloudSet, size: int, order: torch.Tensor | None = None):
@@ -190,15 +192,15 @@ def evaluate(method: str, encoder: PointNetEncoder, head: nn.Module, data: datas
     confusion = torch.zeros(data.num_classes, data.num_classes, dtype=torch.long)
     correct, chamfer = [], []
     for batch in batches(data, EVAL_BATCH):
-        losses.append(float(batch_loss(method, encoder, head, batch, class_weights, generator)))
+        loss, output = batch_loss(method, encoder, head, batch, class_weights, generator)
+        losses.append(float(loss))
         sizes.append(len(batch["points"]))
         if method == "seg":
-            pred = segment_logits(encoder, head, batch["points"]).argmax(-1)
-            confusion += confusion_matrix(pred, batch["labels"], data.num_classes)
+            confusion += confusion_matrix(output.argmax(-1), batch["labels"], data.num_classes)
         elif method == "cls":
-            correct.append(head(encoder(batch["points"])).argmax(-1) == batch["category"])
+            correct.append(output.argmax(-1) == batch["category"])
         elif method == "recon":
-            chamfer.append(chamfer_distance(head(encoder(batch["points"]))[1], batch["points"]))
+            chamfer.append(chamfer_distance(output[1], batch["points"]))
     metrics = {"clouds": len(data), "loss": sum(l * s for l, s in zip(losses, sizes)) / sum(sizes)}
     if method == "seg":
         iou = iou_from_confusion(confusion)
@@ -316,7 +318,7 @@ def train(cfg: PretrainConfig) -> dict:
         tick, loss_sum, seen = time.perf_counter(), 0.0, 0
         encoder.train(), head.train()
         for batch in batches(train_set, batch_size, torch.randperm(len(train_set), generator=generator)):
-            loss = batch_loss(cfg.method, encoder, head, batch, class_weights, generator)
+            loss, _ = batch_loss(cfg.method, encoder, head, batch, class_weights, generator)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -342,15 +344,13 @@ def train(cfg: PretrainConfig) -> dict:
             break
     bar.close()
 
-    # ---- final metrics on seen (validation) and unseen (test) objects; files
-    final_bank = bank()
+    # ---- final metrics on seen (validation, the last epoch's) and unseen (test) objects; files
     metrics = {"method": cfg.method, "encoder": cfg.encoder, "data": str(cfg.data), "kind": train_set.kind,
                "train_clouds": len(train_set), "epochs": len(rows), "steps": step,
-               "seconds_per_epoch": sum(r["train_seconds"] for r in rows) / len(rows),
-               "val": evaluate(cfg.method, encoder, head, val_set, class_weights, final_bank)}
-    if test_set is not None:
-        metrics["test"] = evaluate(cfg.method, encoder, head, test_set, class_weights, final_bank
-                                   if knn_target(train_set) == "category" else None)
+               "seconds_per_epoch": sum(r["train_seconds"] for r in rows) / len(rows), "val": val}
+    if test_set is not None:  # the k-NN probe on unseen objects only makes sense for categories
+        metrics["test"] = evaluate(cfg.method, encoder, head, test_set, class_weights,
+                                   bank() if knn_target(train_set) == "category" else None)
     metrics["wall_seconds"] = time.perf_counter() - start
     metrics["config"] = asdict(cfg)
     encoder_path = save_encoder(encoder, out / "encoder.pt")

@@ -5,15 +5,17 @@ Measured side by side in one run:
 * collection frames/s, with the same env (Laptop by default, point-cloud and camera noise on) and
   the same small-encoder actor-critic choosing every action:
     - ``single_loop``: a plain ``obs -> policy -> env.step`` loop in one process;
-    - ``parallel_loop``: that loop in 2 spawned processes at once (a barrier starts them together);
+    - ``parallel_loop``: that loop in 2 spawned processes, started together;
     - ``collector_1``: torchrl's in-process ``Collector`` on one env;
     - ``collector_2``: torchrl's ``MultiSyncCollector`` with 2 worker processes (what ``train`` uses).
-  Start-up is excluded everywhere (one warm-up batch first). Ratios ``collector_vs_single_loop`` and
-  ``collector_vs_parallel_loop`` compare ``collector_2`` with the plain loops (targets >= 1.6, >= 0.9).
+  Start-up is excluded (every variant is built and warmed up first); then the variants take turns,
+  ``--rounds`` times, and the medians are reported, so a busy machine slows them all alike.
+  ``collector_vs_single_loop`` and ``collector_vs_parallel_loop`` compare ``collector_2`` with the
+  plain loops (targets >= 1.6 and >= 0.9).
 * the PPO update: one Adam step of ``ClipPPOLoss`` on a minibatch of 500 clouds of 608 points, per
   encoder size, with the max-pool backward of ``PointNetEncoder`` (winners only) and, for
-  comparison, the plain dense max-pool backward; reported per minibatch, per 10k frames and epoch,
-  and for one faithful update (20k frames x 10 epochs);
+  comparison, the plain dense max-pool backward (taking turns, medians); reported per minibatch,
+  per 10k frames and epoch, and for one faithful update (20k frames x 10 epochs);
 * a whole training iteration of the ``cpu`` preset (``train``, 2 workers), and the faithful
   preset's iteration computed from the measured parts.
 
@@ -45,7 +47,7 @@ from dexart_lite.envs import make as make_gym_env
 from dexart_lite.models.actor_critic import encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl import ppo
-from dexart_lite.rl.env import make_env
+from dexart_lite.rl.env import make_env, torch_threads
 from dexart_lite.utils import fast_mode, machine_info
 
 MINIBATCH = 500
@@ -53,91 +55,156 @@ POINTS = 512 + 96
 
 
 # ------------------------------------------------------------------ collection
-def plain_loop(task: str, frames: int, seed: int, barrier=None) -> tuple[float, float]:
-    """``frames`` policy + env steps in this process; returns (start, end) wall-clock times."""
+class PlainLoop:
+    """A plain ``obs -> policy -> env.step`` loop over one env, in this process."""
+
+    def __init__(self, task: str, seed: int):
+        self.env = make_gym_env(task, point_noise=True, camera_noise=True)
+        self.actor_critic = make_actor_critic(self.env.observation_space["state"].shape[0])
+        self.obs, _ = self.env.reset(seed=seed)
+        self.run(20)  # warm-up
+
+    def run(self, frames: int) -> None:
+        for _ in range(frames):
+            td = TensorDict({"point_cloud": torch.as_tensor(self.obs["point_cloud"]),
+                             "observation": torch.as_tensor(self.obs["state"])})
+            with torch.no_grad():
+                action = self.actor_critic(td)["action"].numpy()
+            self.obs, _, terminated, truncated, _ = self.env.step(action)
+            if terminated or truncated:
+                self.obs, _ = self.env.reset()
+
+
+def _plain_worker(task: str, seed: int, pipe) -> None:
     torch.set_num_threads(1)
-    env = make_gym_env(task, point_noise=True, camera_noise=True)
-    actor_critic = make_actor_critic(env.observation_space["state"].shape[0])
-    obs, _ = env.reset(seed=seed)
-
-    def step(obs):
-        td = TensorDict({"point_cloud": torch.as_tensor(obs["point_cloud"]), "observation": torch.as_tensor(obs["state"])})
-        with torch.no_grad():
-            action = actor_critic(td)["action"].numpy()
-        obs, _, terminated, truncated, _ = env.step(action)
-        return env.reset()[0] if terminated or truncated else obs
-
-    for _ in range(20):  # warm-up
-        obs = step(obs)
-    if barrier is not None:
-        barrier.wait()
-    start = time.time()
-    for _ in range(frames):
-        obs = step(obs)
-    end = time.time()
-    env.close()
-    return start, end
+    loop = PlainLoop(task, seed)
+    pipe.send("ready")
+    while (frames := pipe.recv()) > 0:
+        loop.run(frames)
+        pipe.send("done")
 
 
-def parallel_loop(task: str, frames: int, workers: int = 2) -> float:
-    """frames/s of ``workers`` plain loops running at once (``frames`` in total)."""
-    ctx = mp.get_context("spawn")
-    with ctx.Manager() as manager, ctx.Pool(workers) as pool:
-        barrier = manager.Barrier(workers)
-        spans = pool.starmap(plain_loop, [(task, frames // workers, i, barrier) for i in range(workers)])
-    return frames // workers * workers / (max(e for _, e in spans) - min(s for s, _ in spans))
+class ParallelPlainLoop:
+    """``workers`` plain loops in spawned processes, started together on each ``run``."""
+
+    def __init__(self, task: str, workers: int = 2):
+        ctx = mp.get_context("spawn")
+        self.pipes, self.procs = [], []
+        for i in range(workers):
+            parent, child = ctx.Pipe()
+            proc = ctx.Process(target=_plain_worker, args=(task, i, child), daemon=True)
+            proc.start()
+            self.pipes.append(parent)
+            self.procs.append(proc)
+        for pipe in self.pipes:
+            assert pipe.recv() == "ready"
+
+    def run(self, frames: int) -> None:
+        for pipe in self.pipes:
+            pipe.send(frames // len(self.pipes))
+        for pipe in self.pipes:
+            pipe.recv()
+
+    def close(self) -> None:
+        for pipe, proc in zip(self.pipes, self.procs):
+            pipe.send(0)
+            proc.join()
 
 
-def collector_fps(task: str, frames: int, workers: int, frames_per_batch: int) -> float:
-    """Steady-state frames/s of the collector ``train`` would build (no updates in between)."""
-    cfg = dataclasses.replace(ppo.PPOConfig(), task=task, workers=workers, frames_per_batch=frames_per_batch)
-    env_fns = [partial(make_env, task, seed=i) for i in range(max(workers, 1))]
-    probe = env_fns[0]()
-    actor_critic = make_actor_critic(probe.observation_spec["observation"].shape[-1])
-    probe.close()
-    collector = ppo.make_collector(cfg, env_fns, actor_critic, total_frames=-1)
-    batches = iter(collector)
-    next(batches)  # warm-up: worker start-up, first resets
-    start = time.perf_counter()
-    n = 0
-    while n < frames:
-        n += next(batches).numel()
-    fps = n / (time.perf_counter() - start)
-    collector.shutdown()
-    return fps
+class CollectorLoop:
+    """The collector ``train`` would build (``ppo.make_collector``), iterated without updates."""
+
+    def __init__(self, task: str, workers: int, frames_per_batch: int):
+        cfg = dataclasses.replace(ppo.PPOConfig(), task=task, workers=workers, frames_per_batch=frames_per_batch)
+        env_fns = [partial(make_env, task, seed=i) for i in range(max(workers, 1))]
+        probe = env_fns[0]()
+        actor_critic = make_actor_critic(probe.observation_spec["observation"].shape[-1])
+        probe.close()
+        self.collector = ppo.make_collector(cfg, env_fns, actor_critic, total_frames=-1)
+        self.batches = iter(self.collector)
+        next(self.batches)  # warm-up: worker start-up, first resets
+
+    def run(self, frames: int) -> None:
+        n = 0
+        while n < frames:
+            n += next(self.batches).numel()
+
+    def close(self) -> None:
+        self.collector.shutdown()
+
+
+def collection_fps(task: str, frames: int, rounds: int) -> dict[str, float]:
+    """Median frames/s of each variant over ``rounds`` rounds; the variants take turns in each round,
+    so a busy machine slows them all alike. ``frames`` per variant and round."""
+    frames_per_batch = min(1000, frames)
+    variants = {"single_loop": PlainLoop(task, seed=0), "parallel_loop": ParallelPlainLoop(task, 2),
+                "collector_1": CollectorLoop(task, 1, frames_per_batch),
+                "collector_2": CollectorLoop(task, 2, frames_per_batch)}
+    fps: dict[str, list[float]] = {k: [] for k in variants}
+    for _ in range(rounds):
+        for name, variant in variants.items():
+            with torch_threads(1):  # in-process loops: as the workers, which use one thread each
+                start = time.perf_counter()
+                variant.run(frames)
+                fps[name].append(frames / (time.perf_counter() - start))
+    for variant in variants.values():
+        if hasattr(variant, "close"):
+            variant.close()
+    return {k: statistics.median(v) for k, v in fps.items()}
 
 
 # ------------------------------------------------------------------ update
-def update_cost(encoder: str, dense: bool, reps: int) -> float:
-    """Seconds per ClipPPOLoss + Adam step on a minibatch of 500 clouds (608 points)."""
-    from torchrl.objectives import ClipPPOLoss
+class UpdateStep:
+    """One ClipPPOLoss + Adam step on a minibatch of 500 clouds (608 points) for ``encoder``.
 
-    torch.manual_seed(0)
-    actor_critic = make_actor_critic(32, 22, encoder)
-    if dense:  # the plain max-pool: autograd keeps every point's activations
-        pointnet = encoder_of(actor_critic)
-        pointnet.forward = lambda points: pointnet.mlp(points).max(dim=-2).values
-    loss_module = ClipPPOLoss(actor_network=actor_critic.get_policy_operator(),
-                              critic_network=actor_critic.get_value_head(), entropy_coeff=0.0, critic_coeff=0.5,
-                              loss_critic_type="l2", normalize_advantage=True)
-    optimizer = torch.optim.Adam(loss_module.parameters(), lr=1e-4, eps=1e-5)
-    batch = TensorDict({"point_cloud": torch.randn(MINIBATCH, POINTS, 3) * 0.3,
-                        "observation": torch.randn(MINIBATCH, 32)}, [MINIBATCH])
-    with torch.no_grad():
-        actor_critic.get_policy_operator()(batch)
-    batch["advantage"], batch["value_target"] = torch.randn(MINIBATCH, 1), torch.randn(MINIBATCH, 1)
-    times = []
-    for i in range(reps + 1):
+    ``dense``: the plain max-pool, whose backward keeps every point's activations, for comparison
+    with ``PointNetEncoder``'s winner-only backward.
+    """
+
+    def __init__(self, encoder: str, dense: bool):
+        from torchrl.objectives import ClipPPOLoss
+
+        torch.manual_seed(0)
+        actor_critic = make_actor_critic(32, 22, encoder)
+        if dense:
+            pointnet = encoder_of(actor_critic)
+            pointnet.forward = lambda points: pointnet.mlp(points).max(dim=-2).values
+        self.loss_module = ClipPPOLoss(actor_network=actor_critic.get_policy_operator(),
+                                       critic_network=actor_critic.get_value_head(), entropy_coeff=0.0,
+                                       critic_coeff=0.5, loss_critic_type="l2", normalize_advantage=True)
+        self.optimizer = torch.optim.Adam(self.loss_module.parameters(), lr=1e-4, eps=1e-5)
+        self.batch = TensorDict({"point_cloud": torch.randn(MINIBATCH, POINTS, 3) * 0.3,
+                                 "observation": torch.randn(MINIBATCH, 32)}, [MINIBATCH])
+        with torch.no_grad():
+            actor_critic.get_policy_operator()(self.batch)
+        self.batch["advantage"], self.batch["value_target"] = torch.randn(MINIBATCH, 1), torch.randn(MINIBATCH, 1)
+        self()  # warm-up
+
+    def __call__(self) -> float:
         start = time.perf_counter()
-        out = loss_module(batch.clone())
+        out = self.loss_module(self.batch.clone())
         loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
-        optimizer.zero_grad()
+        self.optimizer.zero_grad()
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(loss_module.parameters(), 0.5)
-        optimizer.step()
-        if i:  # the first step is a warm-up
-            times.append(time.perf_counter() - start)
-    return statistics.median(times)
+        torch.nn.utils.clip_grad_norm_(self.loss_module.parameters(), 0.5)
+        self.optimizer.step()
+        return time.perf_counter() - start
+
+
+def update_costs(reps: int) -> dict[str, dict[str, float]]:
+    """Median seconds per update step, per encoder, winner-only and dense, taking turns ``reps`` times."""
+    steps = {(size, dense): UpdateStep(size, dense) for size in ENCODER_SIZES for dense in (False, True)}
+    times: dict[tuple, list[float]] = {k: [] for k in steps}
+    for _ in range(reps):
+        for key, step in steps.items():
+            times[key].append(step())
+    update = {}
+    for size in ENCODER_SIZES:
+        seconds, dense = statistics.median(times[size, False]), statistics.median(times[size, True])
+        update[size] = {"minibatch_s": seconds, "per_10k_frames_per_epoch_s": seconds * 10_000 / MINIBATCH,
+                        "faithful_update_s": seconds * 20_000 / MINIBATCH * 10,
+                        "dense_maxpool_minibatch_s": dense, "speedup_vs_dense": dense / seconds}
+    return update
 
 
 def training_iteration(task: str, batches: int) -> dict:
@@ -156,31 +223,20 @@ def training_iteration(task: str, batches: int) -> dict:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--frames", type=int, default=2000, help="timed frames per collection variant")
-    parser.add_argument("--reps", type=int, default=5, help="timed minibatches per encoder")
+    parser.add_argument("--frames", type=int, default=1000, help="timed frames per collection variant and round")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of the collection variants (median)")
+    parser.add_argument("--reps", type=int, default=5, help="timed minibatches per encoder (median)")
     parser.add_argument("--iteration-batches", type=int, default=3, help="cpu-preset batches (first one not timed)")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     if fast_mode():
-        args.frames, args.reps, args.iteration_batches = 200, 1, 2
+        args.frames, args.rounds, args.reps, args.iteration_batches = 200, 1, 1, 2
     torch.set_num_threads(os.cpu_count())
     load_before = os.getloadavg()[0]
-    frames_per_batch = min(1000, args.frames)
 
-    fps = {"single_loop": None, "parallel_loop": None, "collector_1": None, "collector_2": None}
-    start, end = plain_loop(args.task, args.frames, seed=0)
-    fps["single_loop"] = args.frames / (end - start)
-    fps["parallel_loop"] = parallel_loop(args.task, args.frames)
-    fps["collector_1"] = collector_fps(args.task, args.frames, 1, frames_per_batch)
-    fps["collector_2"] = collector_fps(args.task, args.frames, 2, frames_per_batch)
+    fps = collection_fps(args.task, args.frames, args.rounds)
 
-    update = {}
-    for encoder in ENCODER_SIZES:
-        seconds = update_cost(encoder, dense=False, reps=args.reps)
-        dense = update_cost(encoder, dense=True, reps=max(1, args.reps // 2))
-        update[encoder] = {"minibatch_s": seconds, "per_10k_frames_per_epoch_s": seconds * 10_000 / MINIBATCH,
-                           "faithful_update_s": seconds * 20_000 / MINIBATCH * 10,
-                           "dense_maxpool_minibatch_s": dense, "speedup_vs_dense": dense / seconds}
+    update = update_costs(args.reps)
 
     iteration = training_iteration(args.task, args.iteration_batches)
     faithful_collect = 20_000 / fps["collector_2"]
@@ -198,7 +254,8 @@ def main(argv=None) -> dict:
         "update": update,
         "iteration": iteration,
         "settings": {"points": POINTS, "minibatch": MINIBATCH, "torch_threads_learner": torch.get_num_threads(),
-                     "collection_frames": args.frames, "collector_frames_per_batch": frames_per_batch},
+                     "collection_frames_per_round": args.frames, "rounds": args.rounds,
+                     "collector_frames_per_batch": min(1000, args.frames)},
         "load_average_1min": {"before": load_before, "after": os.getloadavg()[0]},
         "command": "python benchmarks/bench_training.py " + " ".join(argv if argv is not None else sys.argv[1:]),
         "machine": machine_info(), "torch": torch.__version__,

@@ -28,7 +28,7 @@ from dexart_lite import objects as objects_lib
 from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY
 from dexart_lite.registration import HORIZON, TASKS
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
-from dexart_lite.rl.env import make_env
+from dexart_lite.rl.env import make_env, torch_threads
 from dexart_lite.utils import check_choice
 
 SPLITS = ("seen", "unseen", "seen_half")
@@ -46,7 +46,7 @@ def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", e
     policy = actor_critic.get_policy_operator()
     episodes = {name: [] for name in names}
     start = time.perf_counter()
-    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC), torch_threads(1):
         for _ in range(episodes_per_object):
             for name in names:
                 reset = env.reset(options={"object": name})
@@ -113,7 +113,8 @@ def record_gif(actor_critic: ActorValueOperator, task: str, path: str | Path, sp
     env = make_gym_env(task, split=split, render_mode="rgb_array", point_noise=True, camera_noise=True,
                        **(env_kwargs or {}))
     options = {"object": object_name} if object_name else None
-    frames, summary = render.record_episode(env, policy_function(actor_critic), seed=seed, options=options)
+    with torch_threads(1):
+        frames, summary = render.record_episode(env, policy_function(actor_critic), seed=seed, options=options)
     env.close()
     render.save_gif(frames, path)
     return {**summary, "path": str(path)}

@@ -204,8 +204,8 @@ def train(cfg: PPOConfig) -> dict:
     if cfg.resume and not ckpt_path.exists():
         raise FileNotFoundError(f"--resume: no checkpoint in {out}")
     out.mkdir(parents=True, exist_ok=True)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
+    learner_threads = cfg.threads or torch.get_num_threads()
+    torch.set_num_threads(learner_threads)
     torch.manual_seed(cfg.seed)
 
     # ---- env factory (picklable, for the worker processes) and the actor-critic
@@ -253,13 +253,16 @@ def train(cfg: PPOConfig) -> dict:
     if remaining > 0:
         env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i) for i in range(max(cfg.workers, 1))]
         collector = make_collector(cfg, env_fns, actor_critic, total_frames=remaining)
+    in_process = cfg.backend == "process" and cfg.workers <= 1  # collects in this process, one action at a time
     logger = CSVLogger(exp_name="log", log_dir=str(out))
     bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
                disable=not cfg.progress, desc=f"PPO {cfg.task}")
     tick = time.perf_counter()
     try:  # shut the workers down on errors too
+        torch.set_num_threads(1 if in_process else learner_threads)
         for data in collector or []:
             collected = time.perf_counter()
+            torch.set_num_threads(learner_threads)
             data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
             n = data.numel()
 
@@ -304,13 +307,13 @@ def train(cfg: PPOConfig) -> dict:
                 checkpoint()
             if cfg.max_minutes is not None and time.perf_counter() - start > 60 * cfg.max_minutes:
                 break
+            torch.set_num_threads(1 if in_process else learner_threads)
             tick = time.perf_counter()
     finally:
         bar.close()
         if collector is not None:
             collector.shutdown()
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
+        torch.set_num_threads(learner_threads)
     ckpt = checkpoint()
 
     # ---- evaluation on seen and unseen objects, learning curve, report

@@ -126,7 +126,8 @@ def test_command_line_options_override_the_preset():
 @pytest.mark.parametrize("overrides, message", [
     ({"encoder": "huge"}, "valid choices: small, medium, large"),
     ({"backend": "mpi"}, "valid choices: process, distributed, ray"),
-    ({"frames_per_batch": 301, "workers": 2}, "multiple of workers"),
+    ({"frames_per_batch": 300, "minibatch": 100, "workers": 7}, "multiple of workers"),
+    ({"frames_per_batch": 300, "minibatch": 200}, "must divide frames_per_batch"),
     ({"epochs": 0}, "epochs must be >= 1"),
 ])
 def test_bad_configs_are_rejected_before_anything_starts(tmp_path, overrides, message):
@@ -188,9 +189,9 @@ def test_resume_continues_the_run(tiny_run, tmp_path):
     shutil.copytree(cfg.out, run_dir)
     with pytest.raises(ValueError, match="already holds a run; pass --resume"):
         ppo.train(dataclasses.replace(cfg, out=str(run_dir), frames=1500))
-    resumed = ppo.train(dataclasses.replace(cfg, out=str(run_dir), frames=1500, frames_per_batch=300, workers=0,
+    resumed = ppo.train(dataclasses.replace(cfg, out=str(run_dir), frames=1600, frames_per_batch=400, workers=0,
                                             resume=True, eval_episodes=0))
-    assert [h["frames"] for h in resumed["history"]] == [600, 1200, 1500]
+    assert [h["frames"] for h in resumed["history"]] == [600, 1200, 1600]
     assert resumed["history"][:2] == result["history"]
     assert load_checkpoint(resumed["checkpoint"])["batches"] == 3
 

@@ -129,6 +129,8 @@ def validate(cfg: PPOConfig) -> None:
             raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
     if cfg.workers < 0 or (cfg.backend != "process" and cfg.workers < 1):
         raise ValueError(f"workers must be >= 0 (>= 1 for the {cfg.backend} backend), got {cfg.workers}")
+    if cfg.frames_per_batch % cfg.minibatch:  # a leftover minibatch of 1 would normalise its advantage to NaN
+        raise ValueError(f"minibatch ({cfg.minibatch}) must divide frames_per_batch ({cfg.frames_per_batch})")
     if cfg.frames_per_batch % max(cfg.workers, 1):
         raise ValueError(f"frames_per_batch ({cfg.frames_per_batch}) must be a multiple of workers ({cfg.workers})")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():

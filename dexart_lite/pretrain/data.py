@@ -205,6 +205,7 @@ def generate_dam(cfg: DamConfig) -> list[Path]:
         env = make(cfg.task, object_names=[i.name for i in infos], num_points=cfg.num_points,
                    point_noise=cfg.point_noise, camera_noise=cfg.camera_noise)
         scene = env.unwrapped
+        total_points = scene.sensor_config.total_points  # observed + 96 imagined
         writers = {part: ShardWriter(folder, part) for part in counts}
         start, steps, resets = time.perf_counter(), 0, 0
         bar = tqdm(total=len(infos) * cfg.samples_per_object, unit="cloud", disable=not cfg.progress,
@@ -236,7 +237,7 @@ def generate_dam(cfg: DamConfig) -> list[Path]:
         seconds = time.perf_counter() - start
         manifests.append(_write_manifest(folder, {
             "format": FORMAT, "format_version": FORMAT_VERSION, "kind": "dam", "task": cfg.task, "split": split,
-            "seed": cfg.seed, "label_names": list(pc.LABELS), "num_points": cfg.num_points + 96,
+            "seed": cfg.seed, "label_names": list(pc.LABELS), "num_points": total_points,
             "objects": [_object_record(i) for i in infos],
             "parts": {p: {"count": w.count, "shards": w.shards} for p, w in writers.items()},
             "settings": {k: v for k, v in asdict(cfg).items() if k not in ("out", "progress", "split")},

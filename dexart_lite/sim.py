@@ -9,6 +9,9 @@ Units: metres, seconds, radians, kilograms, newtons.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +28,20 @@ ER_TINY_RENDERER = pybullet.ER_TINY_RENDERER
 ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX = pybullet.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX
 ER_NO_SEGMENTATION_MASK = pybullet.ER_NO_SEGMENTATION_MASK
 BASE_LINK = -1  # PyBullet's link index of a body's root
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Send the C library's prints to file descriptor 1 to /dev/null for the duration."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 @dataclass
@@ -62,7 +79,8 @@ class BulletSim:
 
     def __init__(self, dt: float = 0.004, solver_iterations: int = 50):
         self.dt = float(dt)
-        self.client: BulletClient | None = BulletClient(connection_mode=pybullet.DIRECT)
+        with _quiet_stdout():  # BulletClient connects with options="", which pybullet echoes as "argv[0]="
+            self.client: BulletClient | None = BulletClient(connection_mode=pybullet.DIRECT)
         self.client.setTimeStep(self.dt)
         self.client.setGravity(*self.GRAVITY)
         # Deterministic pair ordering: the same seed and actions replay the same contacts.

@@ -233,3 +233,26 @@ def test_missing_or_corrupt_checkpoints_give_one_line_errors(tmp_path, capsys):
     assert "not a dexart_lite PPO checkpoint" in capsys.readouterr().err
     with pytest.raises(FileNotFoundError, match="pretrained encoder not found"):
         ppo.train(tiny_config(tmp_path, pretrained=str(tmp_path / "none.pt")))
+
+
+# ------------------------------------------------------------------ the demo (`make demo`)
+def test_demo_trains_evaluates_and_writes_report_curve_gif_and_checkpoint(tmp_path, capsys):
+    from PIL import Image
+
+    assert cli.main(["demo", "--out", str(tmp_path)]) == 0  # fast mode: an 800-frame run
+    (run_dir,) = tmp_path.iterdir()  # one fresh dated folder per demo
+    printed = capsys.readouterr().out
+    for name in ("report.md", "learning_curve.png", "episode.gif", "checkpoint.pt"):
+        assert (run_dir / name).is_file(), name
+        assert str(run_dir / name) in printed
+    assert "seen   success" in printed and "unseen success" in printed
+    with Image.open(run_dir / "episode.gif") as gif:
+        assert gif.n_frames > 1
+    assert load_checkpoint(run_dir / "checkpoint.pt")["frames"] == 800
+
+
+def test_demo_rejects_a_non_positive_budget(tmp_path, capsys):
+    assert cli.main(["demo", "--out", str(tmp_path), "--minutes", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--minutes must be > 0" in err and len(err.splitlines()) == 1
+    assert not any(tmp_path.iterdir())

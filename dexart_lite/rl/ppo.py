@@ -258,7 +258,8 @@ def train(cfg: PPOConfig) -> dict:
     in_process = cfg.backend == "process" and cfg.workers <= 1  # collects in this process, one action at a time
     logger = CSVLogger(exp_name="log", log_dir=str(out))
     bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
-               disable=not cfg.progress, desc=f"PPO {cfg.task}")
+               disable=not cfg.progress,  # with a time budget the ETA is for all frames; the budget ends it sooner
+               desc=f"PPO {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)" if cfg.max_minutes else ""))
     tick = time.perf_counter()
     try:  # shut the workers down on errors too
         torch.set_num_threads(1 if in_process else learner_threads)

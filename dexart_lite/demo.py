@@ -1,6 +1,6 @@
 """The main job on defaults (what ``make demo`` runs): PPO on Laptop, evaluated on seen and unseen laptops.
 
-    dexart-lite demo                      # ~10 minutes on 2 CPU cores
+    dexart-lite demo                      # about 8 minutes on 2 CPU cores (6 of them training)
     dexart-lite demo --minutes 30         # a longer training budget
 
 It trains the small-PointNet policy with ``PRESETS["demo"]`` (the ``cpu`` preset: 4k frames per

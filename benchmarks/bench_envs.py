@@ -16,10 +16,8 @@ For each task, side by side in one run:
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing as mp
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -28,7 +26,7 @@ import psutil
 
 import dexart_lite
 from dexart_lite.envs import make
-from dexart_lite.utils import machine_info
+from dexart_lite.utils import command_line, machine_info, write_json
 
 
 def random_actions(n: int, seed: int = 0) -> np.ndarray:
@@ -130,7 +128,7 @@ def main(argv=None) -> dict:
         tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two_process_rate(task, args.steps),
                        "vs_physics_only": physics_rate_ / full_rate}
     result = {"tasks": tasks, "reset_rss_growth_mb": reset_rss_growth_mb(args.resets), "resets": args.resets,
-              "steps": args.steps, "command": "python benchmarks/bench_envs.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+              "steps": args.steps, "command": command_line("benchmarks/bench_envs.py", argv),
               "machine": machine_info()}
     print("| task | env steps/s (1 process) | env steps/s (2 processes, total) | full step / physics-only step |")
     print("|---|---|---|---|")
@@ -138,8 +136,7 @@ def main(argv=None) -> dict:
         print(f"| {task} | {r['steps_per_s']:.0f} | {r['steps_per_s_2proc']:.0f} | {r['vs_physics_only']:.2f} |")
     print(f"\nmemory growth over {args.resets} resets through all laptops: {result['reset_rss_growth_mb']:.1f} MB")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
+        write_json(args.json, result)
     return result
 
 

@@ -15,14 +15,12 @@ stop at about 10M / 40M / 15M / 8M frames for faucet / bucket / laptop / toilet)
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
-import sys
 from pathlib import Path
 
 import dexart_lite
 from dexart_lite.rl import ppo
-from dexart_lite.utils import fast_mode, machine_info
+from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 RESULTS = Path(__file__).parent / "results"
 # DexArt Table 2, no pre-training, success seen / unseen (mean over 3 seeds)
@@ -77,11 +75,11 @@ def main(argv=None) -> dict:
         "curve_points": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "stage3_frac", "wall_s")}
                          for h in history],
         "last_batches": history[-3:], "seen": seen, "unseen": unseen,
-        "command": "python benchmarks/bench_learning.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": command_line("benchmarks/bench_learning.py", argv),
         "machine": machine_info(), "fast_mode": fast_mode(),
     }
     path = args.results / f"{name}.json"
-    path.write_text(json.dumps(summary, indent=2) + "\n")
+    write_json(path, summary)
     print(f"| {args.task} | frames | seen | unseen |\n|---|---|---|---|")
     print(f"| dexart_lite ({args.preset}) | {result['frames']:,} | {seen['success_rate']:.2f} | {unseen['success_rate']:.2f} |")
     paper = PAPER_NO_PRETRAIN[args.task]

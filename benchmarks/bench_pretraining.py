@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -27,7 +26,7 @@ from dexart_lite.objects import CATEGORIES, list_objects
 from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.registration import TASKS
-from dexart_lite.utils import fast_mode, machine_info
+from dexart_lite.utils import fast_mode, machine_info, write_json
 
 
 def dam_cost(task: str, objects: int, clouds: int, root: Path) -> float:
@@ -114,8 +113,7 @@ def main(argv=None) -> int:
     print(f"\n{results['machine']['cpu']}, {results['machine']['cores']} cores, torch {torch.__version__}, "
           f"{args.threads} threads")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(results, indent=2) + "\n")
+        write_json(args.json, results)
     return 0
 
 

@@ -19,9 +19,7 @@ hold even on a noisy machine:
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -30,7 +28,7 @@ import numpy as np
 import dexart_lite
 from dexart_lite import pointcloud as pc
 from dexart_lite.envs import make
-from dexart_lite.utils import machine_info
+from dexart_lite.utils import command_line, machine_info, write_json
 
 
 def main(argv=None) -> dict:
@@ -108,7 +106,7 @@ def main(argv=None) -> dict:
         "obs_overhead_ratio": ms["full"] / ms["physics"],
         "steps_per_s_full": 1e3 / ms["full"],
         "settings": {"camera": "64x64 TinyRenderer", "points": "512 + 96", "dt": env.sim.dt, "frame_skip": env.frame_skip},
-        "command": "python benchmarks/bench_sim.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": command_line("benchmarks/bench_sim.py", argv),
         "machine": machine_info(),
     }
     print(f"| part ({args.task}) | ms per control step |\n|---|---|")
@@ -117,8 +115,7 @@ def main(argv=None) -> dict:
     print(f"\nobs_overhead_ratio (full / physics) = {result['obs_overhead_ratio']:.2f}; "
           f"{result['steps_per_s_full']:.0f} env steps/s on one core")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
+        write_json(args.json, result)
     return result
 
 

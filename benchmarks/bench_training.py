@@ -29,11 +29,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import multiprocessing as mp
 import os
 import statistics
-import sys
 import tempfile
 import time
 from functools import partial
@@ -48,7 +46,7 @@ from dexart_lite.models.actor_critic import encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl import ppo
 from dexart_lite.rl.env import make_env, torch_threads
-from dexart_lite.utils import fast_mode, machine_info
+from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 MINIBATCH = 500
 POINTS = 512 + 96
@@ -257,7 +255,7 @@ def main(argv=None) -> dict:
                      "collection_frames_per_round": args.frames, "rounds": args.rounds,
                      "collector_frames_per_batch": min(1000, args.frames)},
         "load_average_1min": {"before": load_before, "after": os.getloadavg()[0]},
-        "command": "python benchmarks/bench_training.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": command_line("benchmarks/bench_training.py", argv),
         "machine": machine_info(), "torch": torch.__version__,
     }
     print(f"| collection ({args.task}, small-encoder policy) | frames/s |\n|---|---|")
@@ -278,8 +276,7 @@ def main(argv=None) -> dict:
           f"20k frames = {est['iteration_fps']:.0f} frames/s, {est['hours_per_1M_frames']:.1f} h per 1M frames")
     print(f"load average (1 min): {load_before:.2f} before, {result['load_average_1min']['after']:.2f} after")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
+        write_json(args.json, result)
     return result
 
 

@@ -29,3 +29,20 @@ def machine_info() -> dict:
     except (OSError, StopIteration):
         pass
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()}
+
+
+def command_line(script: str, argv: list[str] | None = None) -> str:
+    """How a benchmark was run, for its JSON: ``python <script> <args>`` (``argv`` None: this process's)."""
+    import sys
+
+    return " ".join(["python", script, *(sys.argv[1:] if argv is None else argv)])
+
+
+def write_json(path, obj) -> None:
+    """Write ``obj`` as indented JSON to ``path``, creating its folder."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(obj, indent=2) + "\n")

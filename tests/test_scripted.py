@@ -31,17 +31,24 @@ def first_steps(stages: list[int]) -> list[int]:
     return list(dict.fromkeys(stages))
 
 
-# ----------------------------------------------------------------------------- faucet
-@pytest.mark.parametrize("name, seed", [
-    ("faucet_87eba23916", 0),   # seen, A: long lever
-    ("faucet_47affbe3f0", 3),   # seen, B: cross knob
-    ("faucet_344a20032b", 0),   # unseen, C: wing handle
+# ----------------------------------------------------------------------------- every task
+@pytest.mark.parametrize("task, name, seed", [
+    ("faucet", "faucet_87eba23916", 0),     # seen, A: long lever
+    ("faucet", "faucet_47affbe3f0", 3),     # seen, B: cross knob
+    ("faucet", "faucet_344a20032b", 0),     # unseen, C: wing handle
+    ("laptop", "laptop_11cbb00f39", 0),     # seen, A: sharp slab, lid turned -58 degrees
+    ("laptop", "laptop_740e7c6eca", 1),     # unseen, C: wedge base, hinge barrel
+    ("toilet", "toilet_de041d761d", 1004),  # seen, A: lid edge 0.27 m in front of the robot base
+    ("toilet", "toilet_bf73de51fa", 0),     # unseen, C: squarish, tankless
+    ("bucket", "bucket_413287b6c4", 1),     # seen, B: tapered
+    ("bucket", "bucket_fc5ca27e47", 0),     # unseen, C: square pail, U-bail
 ])
-def test_faucet_solver_succeeds(name, seed):
-    success, stages = run_episode("faucet", name, seed)
+def test_solver_succeeds(task, name, seed):
+    success, stages = run_episode(task, name, seed)
     assert success, f"{name}: stages reached {first_steps(stages)}"
 
 
+# ----------------------------------------------------------------------------- faucet
 def test_faucet_stages_go_2_3():
     """The faucet starts in stage 2: the start pose puts the palm within the 0.2 m reach radius of
     every faucet handle under every placement, so the solver goes 2 -> 3 (never back)."""
@@ -58,7 +65,8 @@ def test_faucet_solve_reports_rates():
 
 
 # ----------------------------------------------------------------------------- laptop and toilet
-def lid_stages_go_1_2_3(task: str, name: str, seed: int) -> None:
+@pytest.mark.parametrize("task, name, seed", [("laptop", "laptop_cfd3b8b3b2", 1), ("toilet", "toilet_2ecd7e3a4f", 1)])
+def test_lid_stages_go_1_2_3(task, name, seed):
     """Reach (palm farther than 0.2 m laptop / 0.1 m toilet from the lid's grasp point), contact,
     manipulation: a lid episode starts in stage 1 and ends in stage 3 (success terminates it)."""
     success, stages = run_episode(task, name, seed)
@@ -67,42 +75,7 @@ def lid_stages_go_1_2_3(task: str, name: str, seed: int) -> None:
     assert stages[0] == 1 and stages[-1] == 3
 
 
-@pytest.mark.parametrize("name, seed", [
-    ("laptop_11cbb00f39", 0),   # seen, A: sharp slab, lid turned -58 degrees
-    ("laptop_740e7c6eca", 1),   # unseen, C: wedge base, hinge barrel
-])
-def test_laptop_solver_succeeds(name, seed):
-    success, stages = run_episode("laptop", name, seed)
-    assert success, f"{name}: stages reached {first_steps(stages)}"
-
-
-def test_laptop_stages_go_1_2_3():
-    lid_stages_go_1_2_3("laptop", "laptop_cfd3b8b3b2", 1)
-
-
-@pytest.mark.parametrize("name, seed", [
-    ("toilet_de041d761d", 1004),  # seen, A: lid edge 0.27 m in front of the robot base
-    ("toilet_bf73de51fa", 0),     # unseen, C: squarish, tankless
-])
-def test_toilet_solver_succeeds(name, seed):
-    success, stages = run_episode("toilet", name, seed)
-    assert success, f"{name}: stages reached {first_steps(stages)}"
-
-
-def test_toilet_stages_go_1_2_3():
-    lid_stages_go_1_2_3("toilet", "toilet_2ecd7e3a4f", 1)
-
-
 # ----------------------------------------------------------------------------- bucket
-@pytest.mark.parametrize("name, seed", [
-    ("bucket_413287b6c4", 1),   # seen, B: tapered
-    ("bucket_fc5ca27e47", 0),   # unseen, C: square pail, U-bail
-])
-def test_bucket_solver_succeeds(name, seed):
-    success, stages = run_episode("bucket", name, seed)
-    assert success, f"{name}: stages reached {first_steps(stages)}"
-
-
 def test_bucket_stages_go_1_2_3():
     success, stages = run_episode("bucket", "bucket_222c59ab44", 3)
     assert success

@@ -7,7 +7,10 @@ Measured side by side in one run:
     - ``single_loop``: a plain ``obs -> policy -> env.step`` loop in one process;
     - ``parallel_loop``: that loop in 2 spawned processes, started together;
     - ``collector_1``: torchrl's in-process ``Collector`` on one env;
-    - ``collector_2``: torchrl's ``MultiSyncCollector`` with 2 worker processes (what ``train`` uses).
+    - ``collector_2``: torchrl's ``MultiSyncCollector`` with 2 worker processes (what ``train`` uses),
+      yielding batches of ``--collector-batch`` frames (default 4000, the ``cpu`` preset's batch);
+    - ``collector_2_batch1000``: the same with batches of 1000 frames: the workers wait for each
+      other 4x as often, which shows what synchronising costs.
   Start-up is excluded (every variant is built and warmed up first); then the variants take turns,
   ``--rounds`` times, and the medians are reported, so a busy machine slows them all alike.
   ``collector_vs_single_loop`` and ``collector_vs_parallel_loop`` compare ``collector_2`` with the
@@ -131,13 +134,14 @@ class CollectorLoop:
         self.collector.shutdown()
 
 
-def collection_fps(task: str, frames: int, rounds: int) -> dict[str, float]:
+def collection_fps(task: str, frames: int, rounds: int, frames_per_batch: int) -> dict[str, float]:
     """Median frames/s of each variant over ``rounds`` rounds; the variants take turns in each round,
-    so a busy machine slows them all alike. ``frames`` per variant and round."""
-    frames_per_batch = min(1000, frames)
+    so a busy machine slows them all alike. ``frames`` per variant and round; the collectors yield
+    batches of ``frames_per_batch`` (<= ``frames``), split evenly over their workers."""
     variants = {"single_loop": PlainLoop(task, seed=0), "parallel_loop": ParallelPlainLoop(task, 2),
                 "collector_1": CollectorLoop(task, 1, frames_per_batch),
-                "collector_2": CollectorLoop(task, 2, frames_per_batch)}
+                "collector_2": CollectorLoop(task, 2, frames_per_batch),
+                "collector_2_batch1000": CollectorLoop(task, 2, min(1000, frames_per_batch))}
     fps: dict[str, list[float]] = {k: [] for k in variants}
     for _ in range(rounds):
         for name, variant in variants.items():
@@ -221,7 +225,9 @@ def training_iteration(task: str, batches: int) -> dict:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--frames", type=int, default=1000, help="timed frames per collection variant and round")
+    parser.add_argument("--frames", type=int, default=4000, help="timed frames per collection variant and round")
+    parser.add_argument("--collector-batch", type=int, default=ppo.PRESETS["cpu"]["frames_per_batch"],
+                        help="frames per collector batch (train: 4000 on the cpu preset, 20000 faithful)")
     parser.add_argument("--rounds", type=int, default=3, help="rounds of the collection variants (median)")
     parser.add_argument("--reps", type=int, default=5, help="timed minibatches per encoder (median)")
     parser.add_argument("--iteration-batches", type=int, default=3, help="cpu-preset batches (first one not timed)")
@@ -232,7 +238,8 @@ def main(argv=None) -> dict:
     torch.set_num_threads(os.cpu_count())
     load_before = os.getloadavg()[0]
 
-    fps = collection_fps(args.task, args.frames, args.rounds)
+    collector_batch = min(args.collector_batch, args.frames)
+    fps = collection_fps(args.task, args.frames, args.rounds, collector_batch)
 
     update = update_costs(args.reps)
 
@@ -253,7 +260,7 @@ def main(argv=None) -> dict:
         "iteration": iteration,
         "settings": {"points": POINTS, "minibatch": MINIBATCH, "torch_threads_learner": torch.get_num_threads(),
                      "collection_frames_per_round": args.frames, "rounds": args.rounds,
-                     "collector_frames_per_batch": min(1000, args.frames)},
+                     "collector_frames_per_batch": collector_batch},
         "load_average_1min": {"before": load_before, "after": os.getloadavg()[0]},
         "command": command_line("benchmarks/bench_training.py", argv),
         "machine": machine_info(), "torch": torch.__version__,

@@ -41,6 +41,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--results", type=Path, default=RESULTS, help="where the JSON and PNG go")
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json")
+    parser.add_argument("--init-log-std", type=float, default=0.0, help="initial log std of the actions (DexArt: 0)")
     args = parser.parse_args(argv)
     name = f"learning_{args.task}" + (f"_{args.tag}" if args.tag else "")
     out = args.out or Path("runs") / name
@@ -52,6 +53,7 @@ def main(argv=None) -> dict:
             args.results = out / "results"
     cfg = ppo.preset(args.preset, task=args.task, frames=args.frames, encoder=args.encoder, workers=args.workers,
                      seed=args.seed, eval_episodes=args.eval_episodes, out=str(out), resume=args.resume,
+                     init_log_std=args.init_log_std,
                      progress=not fast_mode(), **overrides)
     result = ppo.train(cfg)
 

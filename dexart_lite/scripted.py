@@ -621,33 +621,50 @@ class ScriptedPolicy:
 
 # ----------------------------------------------------------------------------- evaluation + CLI
 def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: int = 0, object_names=None,
-          progress: bool = True) -> dict:
-    """Run the scripted solver over every object of a split; success counts if reached at any step."""
+          progress: bool = True, action_noise: float = 0.0) -> dict:
+    """Run the scripted solver over every object of a split; success counts if reached at any step.
+
+    ``action_noise``: std of Gaussian noise added to every action dimension before the env's clip to
+    [-1, 1], as PPO's sampled actions (``benchmarks/exploration_noise.py``); drawn from an RNG seeded
+    with ``seed``, separate from the env's.
+    """
     from dexart_lite.envs import make
 
     env = make(task, split=split, object_names=object_names, num_points=32)
     policy = ScriptedPolicy(env)
+    noise = np.random.default_rng(seed)
     names = env.unwrapped.objects.names
     per_object: dict[str, list[bool]] = {n: [] for n in names}
     stages: list[int] = []
+    returns: list[float] = []
+    stage_steps = np.zeros(3)  # steps spent in stage 1, 2, 3
     bar = tqdm(total=len(names) * episodes_per_object, desc=f"solve {task}/{split}", disable=not progress)
     for k in range(episodes_per_object):
         for i, name in enumerate(names):
             obs, info = env.reset(seed=seed + 1000 * k + i, options={"object": name})
-            success, best_stage, done = False, info["stage"], False
+            success, best_stage, done, episode_return = False, info["stage"], False, 0.0
             while not done:
-                obs, _, terminated, truncated, info = env.step(policy(obs))
+                action = policy(obs)
+                if action_noise > 0.0:
+                    action = action + action_noise * noise.standard_normal(action.shape)
+                obs, reward, terminated, truncated, info = env.step(action)
                 success, best_stage = success or info["success"], max(best_stage, info["stage"])
+                episode_return += float(reward)
+                stage_steps[info["stage"] - 1] += 1
                 done = terminated or truncated
             per_object[name].append(success)
             stages.append(best_stage)
+            returns.append(episode_return)
             bar.update()
     bar.close()
     env.close()
     rates = {n: float(np.mean(v)) for n, v in per_object.items()}
     return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
+            "action_noise": action_noise,
             "success_rate": float(np.mean([x for v in per_object.values() for x in v])),
-            "success_per_object": rates, "mean_max_stage": float(np.mean(stages))}
+            "success_per_object": rates, "mean_max_stage": float(np.mean(stages)),
+            "mean_return": float(np.mean(returns)),
+            "stage_fractions": {f"stage{s + 1}": float(f) for s, f in enumerate(stage_steps / stage_steps.sum())}}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -165,6 +165,18 @@ def test_deterministic_action_is_the_mean_and_random_action_is_sampled():
     assert not torch.allclose(out["action"], out["loc"])
 
 
+def test_action_std_starts_at_exp_init_log_std():
+    """DexArt starts at std 1 (log std 0); ``init_log_std`` lowers it: the sampled actions' spread follows."""
+    torch.manual_seed(0)
+    obs = _obs(500)  # 500 x 22 samples: the std is within ~1 % of its value
+    for init, std in ((0.0, 1.0), (math.log(0.3), 0.3)):
+        ac = make_actor_critic(32, 22, "small", init_log_std=init)
+        assert torch.allclose(action_log_std(ac), torch.full((22,), init))
+        with torch.no_grad():
+            out = ac.get_policy_operator()(obs.clone())
+        assert (out["action"] - out["loc"]).std().item() == pytest.approx(std, rel=0.04)
+
+
 def test_loss_with_the_value_head_runs_the_trunk_once():
     ac = make_actor_critic(32, 22, "small")
     calls = []

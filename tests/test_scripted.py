@@ -80,3 +80,17 @@ def test_bucket_stages_go_1_2_3():
     success, stages = run_episode("bucket", "bucket_222c59ab44", 3)
     assert success
     assert first_steps(stages) == [1, 2, 3]
+
+
+# ----------------------------------------------------------------------------- exploration noise
+def test_action_noise_of_ppo_init_breaks_the_solver():
+    """``solve(action_noise=...)`` adds N(0, sigma) to each action before the env's clip. With PPO's
+    initial std of 1 the solver, which succeeds without noise, no longer lifts the lid
+    (``benchmarks/exploration_noise.py`` has the whole sweep)."""
+    kwargs = dict(episodes_per_object=1, object_names=["laptop_11cbb00f39"], progress=False)
+    clean, noisy = solve("laptop", action_noise=0.0, **kwargs), solve("laptop", action_noise=1.0, **kwargs)
+    assert clean["success_rate"] == 1.0 and noisy["success_rate"] == 0.0
+    for result in (clean, noisy):
+        assert sum(result["stage_fractions"].values()) == pytest.approx(1.0)
+    assert noisy["stage_fractions"]["stage3"] == 0.0 < clean["stage_fractions"]["stage3"]
+    assert noisy["mean_return"] < clean["mean_return"]

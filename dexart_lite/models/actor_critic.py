@@ -69,8 +69,10 @@ def orthogonal_init(module: nn.Module, gain: float) -> None:
             nn.init.zeros_(layer.bias)
 
 
-def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "small") -> ActorValueOperator:
-    """The shared-trunk actor-critic.
+def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "small",
+                      init_log_std: float = 0.0) -> ActorValueOperator:
+    """The shared-trunk actor-critic; the actions' standard deviation starts at ``exp(init_log_std)``
+    (DexArt / SB3: 0, i.e. std 1).
 
     ``get_policy_operator()`` goes to the collector and the loss's actor; ``get_value_operator()``
     (trunk + value head) to GAE; ``get_value_head()`` to the loss's critic.
@@ -86,7 +88,7 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
     trunk.encoder.reset_parameters()  # the PointNet keeps its own init (pretrained weights load over it)
 
     trunk_module = TensorDictModule(trunk, in_keys=[POINTS_KEY, STATE_KEY], out_keys=[HIDDEN_KEY])
-    loc_scale = TensorDictModule(nn.Sequential(policy_net, AddStateIndependentNormalScale(action_dim, init_value=0.0)),
+    loc_scale = TensorDictModule(nn.Sequential(policy_net, AddStateIndependentNormalScale(action_dim, init_value=init_log_std)),
                                  in_keys=[HIDDEN_KEY], out_keys=["loc", "scale"])
     action_spec = Bounded(low=-1.0, high=1.0, shape=(action_dim,), dtype=torch.float32)
     policy_head = ProbabilisticActor(loc_scale, in_keys=["loc", "scale"], out_keys=["action"], spec=action_spec,

@@ -71,6 +71,7 @@ class PPOConfig:
     minibatch: int = 500
     vf_coef: float = field(default=0.5, metadata={"help": "value-loss coefficient"})
     entropy_coef: float = 0.0
+    init_log_std: float = field(default=0.0, metadata={"help": "initial log std of the actions (DexArt: 0, std 1)"})
     max_grad_norm: float = 0.5
     adam_eps: float = 1e-5
     normalize_advantage: bool = field(default=True, metadata={"help": "per minibatch, as SB3"})
@@ -215,7 +216,7 @@ def train(cfg: PPOConfig) -> dict:
     probe = env_fn()
     num_points, state_dim, action_dim = env_dims(probe)
     probe.close()
-    actor_critic = make_actor_critic(state_dim, action_dim, cfg.encoder)
+    actor_critic = make_actor_critic(state_dim, action_dim, cfg.encoder, cfg.init_log_std)
     if cfg.pretrained:
         load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
     if cfg.freeze_encoder:

@@ -73,10 +73,10 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
 
     sigmas = [r["action_noise"] for r in rows]
     fig, (ax_success, ax_return) = plt.subplots(1, 2, figsize=(9, 3.2))
-    ax_success.plot(sigmas, [r["success_rate"] for r in rows], marker="o")
+    ax_success.plot(sigmas, [r["success_rate"] for r in rows], marker="o", label="success")
     ax_success.plot(sigmas, [r["stage_fractions"]["stage3"] for r in rows], marker="s", label="steps in stage 3")
     ax_success.set(xlabel="action noise std", ylabel="success rate / fraction", ylim=(-0.05, 1.05), title=title)
-    ax_success.legend(["success", "steps in stage 3"])
+    ax_success.legend()
     ax_return.plot(sigmas, [r["mean_return"] for r in rows], marker="o")
     ax_return.set(xlabel="action noise std", ylabel="mean episode return")
     fig.tight_layout()

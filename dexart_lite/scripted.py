@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -630,6 +631,8 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     """
     from dexart_lite.envs import make
 
+    if not (math.isfinite(action_noise) and action_noise >= 0.0):
+        raise ValueError(f"action_noise must be a finite std >= 0, got {action_noise}")
     env = make(task, split=split, object_names=object_names, num_points=32)
     policy = ScriptedPolicy(env)
     noise = np.random.default_rng(seed)

@@ -129,6 +129,7 @@ def test_command_line_options_override_the_preset():
     ({"frames_per_batch": 300, "minibatch": 100, "workers": 7}, "multiple of workers"),
     ({"frames_per_batch": 300, "minibatch": 200}, "must divide frames_per_batch"),
     ({"epochs": 0}, "epochs must be >= 1"),
+    ({"init_log_std": float("nan")}, "init_log_std must be a finite number, got nan"),
 ])
 def test_bad_configs_are_rejected_before_anything_starts(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):

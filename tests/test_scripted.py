@@ -94,3 +94,9 @@ def test_action_noise_of_ppo_init_breaks_the_solver():
         assert sum(result["stage_fractions"].values()) == pytest.approx(1.0)
     assert noisy["stage_fractions"]["stage3"] == 0.0 < clean["stage_fractions"]["stage3"]
     assert noisy["mean_return"] < clean["mean_return"]
+
+
+@pytest.mark.parametrize("noise", [-0.1, float("nan")])
+def test_bad_action_noise_is_rejected(noise):
+    with pytest.raises(ValueError, match="action_noise must be a finite std >= 0"):
+        solve("laptop", object_names=["laptop_11cbb00f39"], progress=False, action_noise=noise)

@@ -88,8 +88,8 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
     trunk.encoder.reset_parameters()  # the PointNet keeps its own init (pretrained weights load over it)
 
     trunk_module = TensorDictModule(trunk, in_keys=[POINTS_KEY, STATE_KEY], out_keys=[HIDDEN_KEY])
-    loc_scale = TensorDictModule(nn.Sequential(policy_net, AddStateIndependentNormalScale(action_dim, init_value=init_log_std)),
-                                 in_keys=[HIDDEN_KEY], out_keys=["loc", "scale"])
+    log_std = AddStateIndependentNormalScale(action_dim, init_value=init_log_std)  # scale = exp(log_std)
+    loc_scale = TensorDictModule(nn.Sequential(policy_net, log_std), in_keys=[HIDDEN_KEY], out_keys=["loc", "scale"])
     action_spec = Bounded(low=-1.0, high=1.0, shape=(action_dim,), dtype=torch.float32)
     policy_head = ProbabilisticActor(loc_scale, in_keys=["loc", "scale"], out_keys=["action"], spec=action_spec,
                                      distribution_class=IndependentNormal, distribution_kwargs={"tanh_loc": False},

@@ -134,6 +134,8 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError(f"minibatch ({cfg.minibatch}) must divide frames_per_batch ({cfg.frames_per_batch})")
     if cfg.frames_per_batch % max(cfg.workers, 1):
         raise ValueError(f"frames_per_batch ({cfg.frames_per_batch}) must be a multiple of workers ({cfg.workers})")
+    if not math.isfinite(cfg.init_log_std):
+        raise ValueError(f"init_log_std must be a finite number, got {cfg.init_log_std}")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
         raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
     if cfg.backend == "ray" and importlib.util.find_spec("ray") is None:

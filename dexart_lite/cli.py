@@ -11,8 +11,10 @@ readable line and exit with status 2; ``--traceback`` shows the full stack inste
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import sys
+import typing
 
 # subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -22,12 +24,34 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "solve": ("dexart_lite.scripted", "run the scripted (privileged-state) solver on a task"),
     "train": ("dexart_lite.rl.ppo", "train a point-cloud PPO policy"),
     "eval": ("dexart_lite.rl.evaluate", "evaluate a checkpoint on seen or unseen objects"),
-    "data": ("dexart_lite.pretrain.data", "generate point-cloud pretraining datasets"),
+    "data": ("dexart_lite.pretrain.data", "generate datasets: pretraining clouds (dam, objects) and expert demos"),
     "pretrain": ("dexart_lite.pretrain.train", "pretrain the PointNet encoder"),
+    "distill": ("dexart_lite.imitation.distill",
+                "distill a point-cloud student from the scripted expert (BC or DAgger)"),
 }
 
 # The exceptions that mean "the user asked for something that cannot be done".
 USER_ERRORS = (ValueError, FileNotFoundError, KeyError, RuntimeError, OSError)
+
+
+def add_config_arguments(parser: argparse.ArgumentParser, config_cls) -> None:
+    """One ``--flag-name`` per field of the dataclass ``config_cls``, typed from its annotation
+    (``int | None`` -> int), with the field's ``metadata["help"]`` and its default; booleans get
+    ``--flag`` / ``--no-flag``."""
+    hints = typing.get_type_hints(config_cls)
+    for f in dataclasses.fields(config_cls):
+        flag = "--" + f.name.replace("_", "-")
+        help_text = f.metadata.get("help", "") + f" (default: {f.default})"
+        if hints[f.name] is bool:
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default, help=help_text)
+        else:
+            kinds = [k for k in typing.get_args(hints[f.name]) if k is not type(None)] or [hints[f.name]]
+            parser.add_argument(flag, type=kinds[0], default=f.default, help=help_text)
+
+
+def config_from_args(config_cls, args: argparse.Namespace):
+    """The ``config_cls`` instance of the flags that ``add_config_arguments`` added."""
+    return config_cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(config_cls)})
 
 
 def _top_parser() -> argparse.ArgumentParser:

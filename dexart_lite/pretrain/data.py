@@ -2,6 +2,9 @@
 
     dexart-lite data dam --task laptop --split all --samples-per-object 1000 --out data/dam_laptop --seed 0
     dexart-lite data objects --split all --samples-per-object 250 --out data/objects --seed 0
+    dexart-lite data demos --task laptop --split seen --episodes-per-object 4 --noise 0.2 --out data/demos
+
+(``demos``, scripted-expert demonstrations for distillation, lives in ``dexart_lite.imitation.demos``.)
 
 **DAM** (DexArt's manipulation dataset, ``examples/pretrain/generate_dataset.py``): the task env
 with point and camera noise (as the training env), random actions ``uniform(-2, 2)^22`` (the env
@@ -449,26 +452,26 @@ def load_part(root: str | Path, part: str) -> PointCloudSet:
 
 
 # ----------------------------------------------------------------------------- command line
-def _add_config(parser: argparse.ArgumentParser, config_cls) -> None:
-    for f in config_cls.__dataclass_fields__.values():
-        flag = "--" + f.name.replace("_", "-")
-        help_text = f.metadata.get("help", "") + f" (default: {f.default})"
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default, help=help_text)
-        else:
-            kind = type(f.default) if f.default is not None else str
-            parser.add_argument(flag, type=kind, default=f.default, help=help_text)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from dexart_lite.cli import add_config_arguments
+    from dexart_lite.imitation import demos  # expert demonstrations for distillation (dexart_lite.imitation)
+
     sub = parser.add_subparsers(dest="kind", metavar="KIND", required=True)
-    _add_config(sub.add_parser("dam", help="the task env with random actions and joint states"), DamConfig)
-    _add_config(sub.add_parser("objects", help="the objects alone, random joint state and viewpoint"), ObjectsConfig)
+    add_config_arguments(sub.add_parser("dam", help="the task env with random actions and joint states"), DamConfig)
+    add_config_arguments(sub.add_parser("objects", help="the objects alone, random joint state and viewpoint"),
+                         ObjectsConfig)
+    demos.add_arguments(sub.add_parser("demos", help="scripted-expert demonstrations with executed-action noise"))
 
 
 def run(args: argparse.Namespace) -> int:
+    from dexart_lite.cli import config_from_args
+
+    if args.kind == "demos":
+        from dexart_lite.imitation import demos
+
+        return demos.run(args)
     config_cls, generate = {"dam": (DamConfig, generate_dam), "objects": (ObjectsConfig, generate_objects)}[args.kind]
-    cfg = config_cls(**{name: getattr(args, name) for name in config_cls.__dataclass_fields__})
+    cfg = config_from_args(config_cls, args)
     for path in generate(cfg):
         manifest = json.loads(path.read_text())
         counts = ", ".join(f"{p} {e['count']}" for p, e in manifest["parts"].items())

@@ -1,0 +1,370 @@
+"""Distil the scripted expert into a point-cloud student: behaviour cloning, then optionally DAgger.
+
+    dexart-lite distill --task laptop --method bc --epochs 30 --out runs/bc_laptop
+    dexart-lite distill --task laptop --method dagger --rounds 3 --episodes-per-round 4 --out runs/dagger_laptop
+    dexart-lite eval --ckpt runs/dagger_laptop/checkpoint.pt --split unseen
+
+The student is the PPO actor-critic (``models.actor_critic.make_actor_critic``: PointNet trunk +
+policy head); it sees only what a PPO policy sees (the 608-point cloud and the state vector), while
+the expert reads the simulator. ``distill`` reads top to bottom:
+
+1. demonstrations: ``demos.collect_demos`` (expert with executed-action noise, clean labels), or an
+   existing folder (``--demos``);
+2. behaviour cloning: the policy head's mean (``loc``) regressed onto the expert labels
+   (``train_student``, MSE or the Gaussian NLL with the state-independent scale);
+3. DAgger (``--method dagger``), ``rounds`` times: run ``episodes_per_round`` episodes per object
+   in which each step executes the expert's action with probability beta, else the student's
+   deterministic action; the expert labels EVERY visited state; the samples join the aggregate
+   buffer (at most ``max_samples``, oldest dropped) and the student trains on all of it, from its
+   current weights. beta is multiplied by ``beta_decay`` after each round;
+4. ``checkpoint.pt`` (the PPO checkpoint format, so ``dexart-lite eval`` loads it), ``encoder.pt``
+   (for ``dexart-lite train --pretrained``), ``log.csv``, evaluation on seen and unseen objects
+   (``eval_seen.json``, ``eval_unseen.json``), ``rounds.png`` and ``report.md`` (``imitation/report.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tensordict import TensorDictBase
+from torchrl.envs import ExplorationType, set_exploration_type
+from torchrl.modules import ActorValueOperator
+from tqdm import tqdm
+
+from dexart_lite import objects as objects_lib
+from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
+from dexart_lite.imitation.report import plot_rounds, write_report
+from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic
+from dexart_lite.models.pointnet import ENCODER_SIZES, save_encoder
+from dexart_lite.registration import TASKS
+from dexart_lite.rl.checkpoint import save_checkpoint
+from dexart_lite.rl.env import torch_threads
+from dexart_lite.rl.evaluate import evaluate, policy_function, record_gif
+from dexart_lite.rollout import Policy, per_object_summary, run_episodes
+from dexart_lite.utils import check_choice, write_json
+
+METHODS = ("bc", "dagger")
+LOSSES = ("mse", "nll")
+CHECKPOINT = "checkpoint.pt"
+
+
+@dataclass
+class DistillConfig:
+    """One distillation run. On Laptop (11 seen objects, 250-step episodes) the defaults collect about
+    11k expert frames and 16.5k student frames, and evaluate on 85 episodes."""
+
+    task: str = field(default="laptop", metadata={"help": f"one of {', '.join(TASKS)}"})
+    method: str = field(default="dagger", metadata={"help": "bc (demonstrations only) or dagger"})
+    encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large"})
+    split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
+    objects: str | None = field(default=None, metadata={"help": "comma-separated training objects (default: the split)"})
+    demos: str | None = field(default=None, metadata={"help": "start from this `dexart-lite data demos` folder"})
+    demo_episodes_per_object: int = field(default=4, metadata={"help": "expert episodes per object for BC"})
+    demo_noise: float = field(default=0.2, metadata={"help": "std of the noise on the expert's executed actions"})
+    rounds: int = field(default=3, metadata={"help": "DAgger rounds after BC"})
+    episodes_per_round: int = field(default=2, metadata={"help": "DAgger episodes per object and round"})
+    epochs: int = field(default=30, metadata={"help": "BC epochs over the demonstrations"})
+    epochs_per_round: int = field(default=10, metadata={"help": "epochs over the aggregate buffer after each round"})
+    beta: float = field(default=0.5, metadata={"help": "DAgger: probability of executing the expert's action, round 1"})
+    beta_decay: float = field(default=0.5, metadata={"help": "DAgger: beta is multiplied by this after each round"})
+    lr: float = field(default=1e-3, metadata={"help": "Adam learning rate"})
+    batch_size: int = 256
+    weight_decay: float = field(default=0.0, metadata={"help": "Adam weight decay"})
+    loss: str = field(default="mse", metadata={"help": "mse on the mean action, or nll (Gaussian, trains the log-std)"})
+    init_log_std: float = field(default=0.0, metadata={"help": "initial log std of the student's actions (for PPO)"})
+    max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
+    num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
+    max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250)"})
+    seed: int = 0
+    eval_episodes: int = field(default=5, metadata={"help": "evaluation episodes per object and split (0: none)"})
+    eval_seed: int = 100
+    out: str = field(default="runs/distill", metadata={"help": "output folder"})
+    gif: bool = field(default=False, metadata={"help": "save a GIF of one evaluation episode on an unseen object"})
+    threads: int = field(default=0, metadata={"help": "torch threads for training (0: all cores)"})
+    progress: bool = field(default=True, metadata={"help": "show a progress bar"})
+    max_minutes: float | None = field(default=None, metadata={"help": "time budget: no new DAgger round after it"})
+
+    def env_kwargs(self) -> dict:
+        """Keyword arguments of the env shared by collection, evaluation and the GIF."""
+        kwargs = {"num_points": self.num_points}
+        if self.max_episode_steps:
+            kwargs["max_episode_steps"] = self.max_episode_steps
+        return kwargs
+
+    def object_names(self) -> list[str]:
+        in_split = [info.name for info in objects_lib.list_objects(self.task, self.split)]
+        if not self.objects:
+            return in_split
+        names = [n.strip() for n in self.objects.split(",") if n.strip()]
+        for name in names:
+            check_choice(f"{self.split} {self.task} object", name, in_split)
+        return names
+
+
+def validate(cfg: DistillConfig) -> None:
+    """``ValueError`` naming the valid choices or range for the first bad field."""
+    check_choice("task", cfg.task, TASKS)
+    check_choice("method", cfg.method, METHODS)
+    check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
+    check_choice("training split", cfg.split, ("seen", "seen_half"))
+    check_choice("loss", cfg.loss, LOSSES)
+    for name in ("demo_episodes_per_object", "rounds", "episodes_per_round", "epochs", "epochs_per_round",
+                 "batch_size", "max_samples", "num_points"):
+        if getattr(cfg, name) < 1:
+            raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
+    for name in ("beta", "beta_decay"):
+        if not 0.0 <= getattr(cfg, name) <= 1.0:
+            raise ValueError(f"{name} must be in [0, 1], got {getattr(cfg, name)}")
+    if not (math.isfinite(cfg.demo_noise) and cfg.demo_noise >= 0):
+        raise ValueError(f"demo_noise must be a finite std >= 0, got {cfg.demo_noise}")
+    if not (cfg.lr > 0 and cfg.weight_decay >= 0 and math.isfinite(cfg.init_log_std)):
+        raise ValueError(f"need lr > 0, weight_decay >= 0 and a finite init_log_std, got {cfg.lr}, "
+                         f"{cfg.weight_decay}, {cfg.init_log_std}")
+    if cfg.eval_episodes < 0 or cfg.threads < 0:
+        raise ValueError(f"eval_episodes and threads must be >= 0, got {cfg.eval_episodes}, {cfg.threads}")
+    if cfg.max_minutes is not None and not cfg.max_minutes > 0:
+        raise ValueError(f"max_minutes must be > 0, got {cfg.max_minutes}")
+    cfg.object_names()
+
+
+# ----------------------------------------------------------------------------- learning
+def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig,
+                  epochs: int) -> list[float]:
+    """Regress the policy mean onto ``data["expert_action"]`` for ``epochs`` shuffled passes (Adam,
+    minibatches of ``cfg.batch_size``); returns the mean loss of each epoch. ``data``: a TensorDict
+    of samples (``demos.SAMPLE_SPECS``), in memory or memory-mapped."""
+    policy = actor_critic.get_policy_operator()  # trunk + policy head; the value head is not trained
+    optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    n = data.batch_size[0]
+    losses = []
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(epochs):
+            total = 0.0
+            for idx in torch.randperm(n, generator=generator).split(cfg.batch_size):
+                batch = data[idx]
+                out = policy(batch.select(POINTS_KEY, STATE_KEY))
+                target = batch["expert_action"]  # (B, 22)
+                if cfg.loss == "mse":
+                    loss = (out["loc"] - target).pow(2).mean()
+                else:  # Gaussian NLL per action, with the state-independent scale
+                    loss = -torch.distributions.Normal(out["loc"], out["scale"]).log_prob(target).sum(-1).mean()
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                total += float(loss.detach()) * len(idx)
+            losses.append(total / n)
+    return losses
+
+
+class Mixture:
+    """DAgger's executed policy: the expert labels every step (``label``); its action is executed with
+    probability ``beta``, the student's otherwise. ``rng``: a ``numpy.random.Generator``."""
+
+    def __init__(self, expert: Policy, student: Policy, beta: float, rng: np.random.Generator):
+        self.expert, self.student, self.beta, self.rng = expert, student, beta, rng
+        self.label: np.ndarray | None = None
+        self.expert_steps = self.steps = 0
+
+    def reset(self) -> None:
+        for policy in (self.expert, self.student):
+            if hasattr(policy, "reset"):
+                policy.reset()
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        self.label = np.asarray(self.expert(obs), dtype=np.float32)  # every step: the expert follows the episode
+        self.steps += 1
+        if self.rng.random() < self.beta:
+            self.expert_steps += 1
+            return np.clip(self.label, -1.0, 1.0)
+        return np.clip(np.asarray(self.student(obs), dtype=np.float32), -1.0, 1.0)
+
+
+def collect_dagger(env, expert: Policy, student: Policy, episodes: list[tuple[int, str]], beta: float,
+                   rng: np.random.Generator, objects: list[str], first_episode: int = 0):
+    """One DAgger round: ``(samples, episode results, share of steps the expert drove)``."""
+    mixture = Mixture(expert, student, beta, rng)
+    recorder = Recorder(mixture, objects, first_episode)
+    with torch.no_grad(), torch_threads(1):  # acting one step at a time: fastest on one thread
+        results = run_episodes(mixture, env, episodes, on_step=recorder)
+    return recorder.samples(), results, mixture.expert_steps / max(mixture.steps, 1)
+
+
+# ----------------------------------------------------------------------------- the run
+def distill(cfg: DistillConfig) -> dict:
+    """Demonstrations -> BC -> DAgger rounds -> checkpoint, evaluation, report; see the module docstring."""
+    from torchrl.data import LazyMemmapStorage, ReplayBuffer
+
+    from dexart_lite.envs import make
+    from dexart_lite.scripted import ScriptedPolicy
+
+    validate(cfg)
+    start = time.perf_counter()
+    out = Path(cfg.out)
+    if (out / CHECKPOINT).exists():
+        raise ValueError(f"{out} already holds a run; choose another --out or delete it")
+    demo_path = Path(cfg.demos) if cfg.demos else out / "demos"
+    if cfg.demos:
+        check_demos(read_manifest(demo_path), cfg)
+    out.mkdir(parents=True, exist_ok=True)
+    names = cfg.object_names()
+    budget = 60 * cfg.max_minutes if cfg.max_minutes else None
+
+    with torch_threads(cfg.threads or os.cpu_count()):
+        torch.manual_seed(cfg.seed)
+        # ---- 1. demonstrations (the expert drives, with noise)
+        if not cfg.demos:
+            collect_demos(cfg.task, cfg.split, cfg.demo_episodes_per_object, cfg.demo_noise, cfg.seed, demo_path,
+                          cfg.num_points, cfg.max_episode_steps, names, cfg.progress)
+        manifest = read_manifest(demo_path)
+        demos = load_demos(demo_path)
+
+        env = make(cfg.task, split=cfg.split, object_names=names, point_noise=True, camera_noise=True,
+                   **cfg.env_kwargs())
+        dims = {"num_points": env.observation_space["point_cloud"].shape[0],
+                "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0]}
+        actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std)
+        buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
+        history: list[dict] = []
+        frames = {"expert": manifest["samples"], "student": 0}
+
+        def log_round(phase: str, beta: float, episodes: int, summary: dict, new_samples: int, losses: list[float],
+                      expert_share: float, collect_s: float, train_s: float) -> dict:
+            row = {"round": len(history), "phase": phase, "beta": beta, "episodes": episodes,
+                   "collect_success": summary["success_rate"], "collect_max_stage": summary["mean_max_stage"],
+                   "expert_share": expert_share, "new_samples": new_samples, "buffer": len(buffer),
+                   "expert_frames": frames["expert"], "student_frames": frames["student"],
+                   "frames": frames["expert"] + frames["student"], "loss_first": losses[0], "loss": losses[-1],
+                   "collect_s": collect_s, "train_s": train_s, "wall_s": time.perf_counter() - start}
+            history.append(row)
+            write_log(out / "log.csv", history)
+            save_student(out / CHECKPOINT, actor_critic, cfg, dims, frames, history)
+            return row
+
+        rounds = cfg.rounds if cfg.method == "dagger" else 0
+        # with a time budget the bar counts seconds of it, so its ETA is the budget's end
+        bar = tqdm(total=round(budget) if budget else 1 + rounds, unit="s" if budget else "round",
+                   initial=min(round(time.perf_counter() - start), round(budget)) if budget else 0,
+                   desc=f"distill {cfg.task} ({cfg.method}" + (f", {cfg.max_minutes:g} min budget)" if budget else ")"),
+                   disable=not cfg.progress, dynamic_ncols=True)
+
+        def advance(row: dict) -> None:
+            bar.update(min(round(time.perf_counter() - start), bar.total) - bar.n if budget else 1)
+            bar.set_postfix(loss=f"{row['loss']:.4f}", succ=f"{row['collect_success']:.2f}", frames=row["frames"])
+
+        try:
+            # ---- 2. behaviour cloning on the demonstrations
+            tick = time.perf_counter()
+            buffer.extend(demos)
+            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs)
+            expert = {"success_rate": manifest["expert_success_rate"],
+                      "mean_max_stage": manifest["expert_mean_max_stage"]}
+            advance(log_round("bc", 1.0, len(manifest["episodes"]), expert, manifest["samples"], losses, 1.0,
+                              0.0 if cfg.demos else manifest["wall_time_s"], time.perf_counter() - tick))
+
+            # ---- 3. DAgger: the student drives (with probability 1 - beta), the expert labels
+            scripted, student = ScriptedPolicy(env), policy_function(actor_critic)
+            episodes_done = len(manifest["episodes"])
+            index_names = manifest["objects"] + [n for n in names if n not in manifest["objects"]]  # "object" index
+            for r in range(1, rounds + 1):
+                if budget and time.perf_counter() - start > budget:
+                    break
+                tick = time.perf_counter()
+                beta = cfg.beta * cfg.beta_decay ** (r - 1)
+                episodes = episode_list(names, cfg.episodes_per_round, np.random.default_rng([cfg.seed, 2, r]))
+                samples, results, share = collect_dagger(env, scripted, student, episodes, beta,
+                                                         np.random.default_rng([cfg.seed, 3, r]), index_names,
+                                                         episodes_done)
+                episodes_done += len(episodes)
+                frames["student"] += samples.batch_size[0]
+                buffer.extend(samples)
+                collected = time.perf_counter()
+                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round)
+                advance(log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0],
+                                  losses, share, collected - tick, time.perf_counter() - collected))
+        finally:
+            bar.close()
+            env.close()
+            shutil.rmtree(out / "buffer", ignore_errors=True)
+        ckpt = save_student(out / CHECKPOINT, actor_critic, cfg, dims, frames, history)
+        encoder = save_encoder(encoder_of(actor_critic), out / "encoder.pt")
+
+        # ---- 4. evaluation on seen and unseen objects, GIF, curve, report
+        evals = evaluate_student(actor_critic, cfg, out)
+        gif = None
+        if cfg.gif:
+            unseen = objects_lib.list_objects(cfg.task, "unseen")[0].name
+            gif = record_gif(actor_critic, cfg.task, out / "episode.gif", "unseen", unseen, cfg.eval_seed,
+                             cfg.env_kwargs())["path"]
+    curve = plot_rounds(history, evals, out / "rounds.png", title=f"{cfg.method} on {cfg.task}, {cfg.encoder} PointNet")
+    wall = time.perf_counter() - start
+    report = write_report(out / "report.md", cfg, manifest, history, evals, curve, wall, gif)
+    by_split = {e["split"]: e for e in evals}
+    return {"checkpoint": str(ckpt), "encoder": str(encoder), "report": str(report), "curve": str(curve), "gif": gif,
+            "log": str(out / "log.csv"), "demos": str(demo_path),
+            "seen_success": by_split["seen"]["success_rate"] if evals else None,
+            "unseen_success": by_split["unseen"]["success_rate"] if evals else None,
+            "expert_frames": frames["expert"], "student_frames": frames["student"], "wall_time_s": wall,
+            "eval": by_split, "history": history}
+
+
+def check_demos(manifest: dict, cfg: DistillConfig) -> None:
+    """``ValueError`` unless the demonstrations of ``manifest`` fit the run of ``cfg``."""
+    for key in ("task", "num_points"):
+        if manifest[key] != getattr(cfg, key):
+            raise ValueError(f"--demos {cfg.demos} has {key} {manifest[key]!r}, this run has {getattr(cfg, key)!r}")
+
+
+def save_student(path: Path, actor_critic: ActorValueOperator, cfg: DistillConfig, dims: dict, frames: dict,
+                 history: list[dict]) -> Path:
+    """The student as a PPO checkpoint (``rl.checkpoint``): ``dexart-lite eval`` and ``render`` load it."""
+    return save_checkpoint(path, {"config": asdict(cfg), "dims": dims, "model": actor_critic.state_dict(),
+                                  "frames": frames["expert"] + frames["student"], "batches": len(history),
+                                  "history": history, "trainer": "distill"})
+
+
+def write_log(path: Path, history: list[dict]) -> Path:
+    """One CSV row per round (0: BC on the demonstrations)."""
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(history[0]))
+        writer.writeheader()
+        writer.writerows(history)
+    return path
+
+
+def evaluate_student(actor_critic: ActorValueOperator, cfg: DistillConfig, out: Path) -> list[dict]:
+    """``rl.evaluate.evaluate`` on the seen and the unseen objects; writes ``eval_<split>.json``."""
+    evals = []
+    for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
+        result = evaluate(actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
+        write_json(out / f"eval_{split}.json", result)
+        evals.append(result)
+    return evals
+
+
+# ----------------------------------------------------------------------------- command line
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from dexart_lite.cli import add_config_arguments
+
+    add_config_arguments(parser, DistillConfig)
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexart_lite.cli import config_from_args
+
+    result = distill(config_from_args(DistillConfig, args))
+    print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
+    print(f"expert frames {result['expert_frames']}, student frames {result['student_frames']}, "
+          f"{result['wall_time_s'] / 60:.1f} min")
+    for split, res in result["eval"].items():
+        print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")
+    return 0

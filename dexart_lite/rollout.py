@@ -1,0 +1,97 @@
+"""One episode loop for the gymnasium envs, shared by expert demonstrations, DAgger and scripts.
+
+    episodes = [(seed, "laptop_11cbb00f39"), (seed + 1, "laptop_cfd3b8b3b2")]
+    results = run_episodes(policy, env, episodes, on_step=recorder)
+    per_object_summary(results)["success_rate"]
+
+A policy is any callable ``obs -> action (22,)``; one that must know when an episode starts has a
+``reset()`` method, called right after ``env.reset``. Each episode is reset with its own seed and,
+if given, its object (``options={"object": name}``), so a list of episodes replays exactly. As in
+DexArt's evaluation, an episode is a success if it succeeds at any step.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from tqdm import tqdm
+
+Policy = Callable[[dict], np.ndarray]  # gymnasium observation -> action (22,)
+# on_step(obs, action, reward, next_obs, info, t): obs is the observation the action was chosen on,
+# info the env's info after the step, t the step index (0 for the first action of an episode)
+OnStep = Callable[[dict, np.ndarray, float, dict, dict, int], None]
+
+
+def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on_step: OnStep | None = None,
+                 progress: bool = False) -> list[dict]:
+    """Run one episode per ``(seed, object_name)`` pair (``object_name`` None: drawn by the seed).
+
+    Returns one dict per episode: object, seed, success (at any step), max_stage (highest stage,
+    1..3, including the reset state), return, steps, stages (the stage after each step).
+    """
+    results = []
+    for seed, name in tqdm(episodes, unit="episode", disable=not progress, dynamic_ncols=True):
+        obs, info = env.reset(seed=int(seed), options={"object": name} if name else None)
+        if hasattr(policy, "reset"):
+            policy.reset()
+        success, max_stage, total, stages = bool(info["success"]), int(info["stage"]), 0.0, []
+        done, t = False, 0
+        while not done:
+            action = policy(obs)
+            next_obs, reward, terminated, truncated, info = env.step(action)
+            if on_step is not None:
+                on_step(obs, action, reward, next_obs, info, t)
+            success = success or bool(info["success"])
+            stages.append(int(info["stage"]))
+            max_stage = max(max_stage, stages[-1])
+            total += float(reward)
+            obs, done, t = next_obs, terminated or truncated, t + 1
+        results.append({"object": info["object_name"], "seed": int(seed), "success": success,
+                        "max_stage": max_stage, "return": total, "steps": t, "stages": stages})
+    return results
+
+
+class Noisy:
+    """``policy`` with Gaussian noise of std ``sigma`` added to its action, then clipped to [-1, 1].
+
+    The action before the noise stays readable as ``label`` (the clean expert action of a
+    demonstration). ``rng`` is a ``numpy.random.Generator``, separate from the env's.
+    """
+
+    def __init__(self, policy: Policy, sigma: float, rng: np.random.Generator):
+        if not (np.isfinite(sigma) and sigma >= 0):
+            raise ValueError(f"noise must be a finite std >= 0, got {sigma}")
+        self.policy, self.sigma, self.rng = policy, float(sigma), rng
+        self.label: np.ndarray | None = None
+
+    def reset(self) -> None:
+        if hasattr(self.policy, "reset"):
+            self.policy.reset()
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        self.label = np.asarray(self.policy(obs), dtype=np.float32)
+        noise = self.rng.standard_normal(self.label.shape) if self.sigma > 0 else 0.0
+        return np.clip(self.label + self.sigma * noise, -1.0, 1.0).astype(np.float32)
+
+
+def noisy(policy: Policy, sigma: float, rng: np.random.Generator) -> Noisy:
+    """``policy`` with executed-action noise of std ``sigma``; see ``Noisy``."""
+    return Noisy(policy, sigma, rng)
+
+
+def _summary(episodes: list[dict]) -> dict:
+    return {"success_rate": float(np.mean([e["success"] for e in episodes])),
+            "mean_max_stage": float(np.mean([e["max_stage"] for e in episodes])),
+            "mean_return": float(np.mean([e["return"] for e in episodes])),
+            "mean_steps": float(np.mean([e["steps"] for e in episodes])), "episodes": len(episodes)}
+
+
+def per_object_summary(episodes: list[dict]) -> dict:
+    """Success rate, mean highest stage, mean return and mean length, overall and per object (the
+    layout of ``rl.evaluate.evaluate``, so ``markdown_table`` can print it once ``split`` is added)."""
+    if not episodes:
+        raise ValueError("no episodes to summarise")
+    names = list(dict.fromkeys(e["object"] for e in episodes))  # first-seen order
+    per_object = {name: _summary([e for e in episodes if e["object"] == name]) for name in names}
+    return {**_summary(episodes), "objects": per_object}

@@ -1,0 +1,317 @@
+"""Expert demonstrations, behaviour cloning and DAgger (dexart_lite.imitation) on tiny budgets.
+
+Every env here is the Laptop with 32 observed points, a few steps per episode and one object;
+training uses one torch thread (two threads are many times slower on a busy 2-core machine).
+"""
+
+import dataclasses
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+
+from dexart_lite import cli
+from dexart_lite import objects as objects_lib
+from dexart_lite import scripted
+from dexart_lite.envs import make
+from dexart_lite.imitation import demos as demos_lib
+from dexart_lite.imitation.demos import collect_demos, load_demos
+from dexart_lite.imitation.distill import DistillConfig, collect_dagger, distill, train_student, validate
+from dexart_lite.models.actor_critic import action_log_std, make_actor_critic
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+from dexart_lite.rl.env import torch_threads
+from dexart_lite.rollout import per_object_summary, run_episodes
+
+OBJECT = objects_lib.list_objects("laptop", "seen")[0].name
+STEPS = 8  # steps per episode
+TINY_DEMOS = dict(task="laptop", split="seen", episodes_per_object=2, noise=0.3, num_points=32,
+                  max_episode_steps=STEPS, object_names=[OBJECT], progress=False)
+TINY_ENV = dict(split="seen", object_names=[OBJECT], num_points=32, point_noise=True, camera_noise=True,
+                max_episode_steps=STEPS)
+
+
+def tiny_distill_config(tmp_path, **overrides) -> DistillConfig:
+    return dataclasses.replace(DistillConfig(), **{
+        "task": "laptop", "objects": OBJECT, "demo_episodes_per_object": 1, "rounds": 2, "episodes_per_round": 1,
+        "epochs": 2, "epochs_per_round": 1, "batch_size": 16, "num_points": 32, "max_episode_steps": STEPS,
+        "eval_episodes": 1, "threads": 1, "progress": False, "out": str(tmp_path / "run"), **overrides})
+
+
+class FakeExpert:
+    """A deterministic expert of the observation alone; counts its calls."""
+
+    def __init__(self, env):
+        self.calls = 0
+
+    @staticmethod
+    def act(state: np.ndarray) -> np.ndarray:
+        return np.tanh(3.0 * np.resize(state, 22)).astype(np.float32)
+
+    def __call__(self, obs):
+        self.calls += 1
+        return self.act(obs["state"])
+
+
+def stored_bytes(folder) -> dict[str, str]:
+    return {f.name: hashlib.sha256(f.read_bytes()).hexdigest() for f in sorted((folder / "samples").glob("*.memmap"))}
+
+
+@pytest.fixture(scope="module")
+def demos_dir(tmp_path_factory):
+    """Two noisy expert episodes of one laptop."""
+    out = tmp_path_factory.mktemp("demos") / "seed0"
+    collect_demos(seed=0, out=out, **TINY_DEMOS)
+    return out
+
+
+# ------------------------------------------------------------------ rollout layer
+def test_run_episodes_reports_every_episode_and_resets_the_policy():
+    class Policy:
+        resets = 0
+
+        def reset(self):
+            self.resets += 1
+
+        def __call__(self, obs):
+            return np.zeros(22)
+
+    env, policy, steps = make("laptop", **{**TINY_ENV, "max_episode_steps": 5}), Policy(), []
+    results = run_episodes(policy, env, [(3, OBJECT), (4, OBJECT)], on_step=lambda *a: steps.append(a[-1]))
+    env.close()
+    assert policy.resets == 2 and steps == [0, 1, 2, 3, 4] * 2
+    assert [(r["object"], r["seed"], r["steps"], len(r["stages"])) for r in results] == [(OBJECT, 3, 5, 5),
+                                                                                          (OBJECT, 4, 5, 5)]
+    assert all(r["max_stage"] >= max(r["stages"]) and not r["success"] for r in results)
+    summary = per_object_summary(results)
+    assert summary["success_rate"] == 0.0 and summary["objects"][OBJECT]["episodes"] == 2
+
+
+# ------------------------------------------------------------------ demonstrations
+def test_demos_round_trip_replays_and_labels_are_the_clean_expert_actions(demos_dir):
+    manifest, data = json.loads((demos_dir / "manifest.json").read_text()), load_demos(demos_dir)
+    assert manifest["samples"] == data.batch_size[0] == 2 * STEPS and manifest["objects"] == [OBJECT]
+    assert data["point_cloud"].shape == (2 * STEPS, 32 + 96, 3) and data["point_cloud"].dtype == torch.float32
+    assert data["imagined_mask"].dtype == torch.int8 and data["observation"].shape == (2 * STEPS, 32)
+    assert data["t"].tolist() == list(range(STEPS)) * 2 and data["episode"].tolist() == [0] * STEPS + [1] * STEPS
+    executed, labels = data["action"], data["expert_action"]
+    assert executed.abs().max() <= 1.0 and (executed != labels).any(-1).all()  # noise on what ran, not on labels
+    # Replay: a fresh env and a fresh expert, the stored executed actions -> the same observations, and
+    # the expert, called on each of them, returns exactly the stored label.
+    env = make("laptop", **TINY_ENV)
+    expert = scripted.ScriptedPolicy(env)
+    for k, episode in enumerate(manifest["episodes"]):
+        obs, _ = env.reset(seed=episode["seed"], options={"object": episode["object"]})
+        for t in range(episode["steps"]):
+            i = k * STEPS + t
+            np.testing.assert_array_equal(obs["point_cloud"], data["point_cloud"][i].numpy())
+            np.testing.assert_array_equal(obs["state"], data["observation"][i].numpy())
+            np.testing.assert_array_equal(expert(obs).astype(np.float32), labels[i].numpy())
+            obs, *_ = env.step(executed[i].numpy())
+    env.close()
+
+
+def test_same_seed_same_bytes_other_seed_other_bytes(demos_dir, tmp_path):
+    collect_demos(seed=0, out=tmp_path / "again", **TINY_DEMOS)
+    collect_demos(seed=1, out=tmp_path / "other", **TINY_DEMOS)
+    reference = stored_bytes(demos_dir)
+    assert len(reference) == len(demos_lib.SAMPLE_SPECS)
+    assert stored_bytes(tmp_path / "again") == reference
+    other = stored_bytes(tmp_path / "other")
+    for name in ("point_cloud.memmap", "action.memmap", "expert_action.memmap"):
+        assert other[name] != reference[name]
+
+
+def test_labels_are_the_expert_outputs_with_or_without_noise(tmp_path, monkeypatch):
+    monkeypatch.setattr(scripted, "ScriptedPolicy", FakeExpert)
+    for noise in (0.0, 0.5):
+        collect_demos(seed=0, out=tmp_path / str(noise), **{**TINY_DEMOS, "noise": noise})
+        data = load_demos(tmp_path / str(noise))
+        labels = torch.as_tensor(np.stack([FakeExpert.act(s) for s in data["observation"].numpy()]))
+        assert torch.equal(data["expert_action"], labels)
+        if noise == 0.0:
+            assert torch.equal(data["action"], labels)
+        else:
+            assert (data["action"] != labels).any(-1).all()
+
+
+def test_missing_corrupt_or_foreign_demos_give_one_line_errors(demos_dir, tmp_path, capsys):
+    def broken(name, edit):
+        folder = tmp_path / name
+        shutil.copytree(demos_dir, folder)
+        edit(folder)
+        return folder
+
+    def edit_manifest(**changes):
+        def edit(folder):
+            manifest = json.loads((folder / "manifest.json").read_text())
+            (folder / "manifest.json").write_text(json.dumps({**manifest, **changes}))
+        return edit
+
+    samples = "samples"
+    cases = {
+        tmp_path / "nowhere": (FileNotFoundError, "no demonstrations folder"),
+        broken("no_manifest", lambda f: (f / "manifest.json").unlink()): (FileNotFoundError, "has no manifest.json"),
+        broken("not_json", lambda f: (f / "manifest.json").write_text("{oops")): (ValueError, "not a readable"),
+        broken("foreign", edit_manifest(format="dexart_lite.pretrain.dataset")): (ValueError, "not a dexart_lite demo"),
+        broken("future", edit_manifest(format_version=99)): (ValueError, "format version 99"),
+        broken("more", edit_manifest(samples=99)): (ValueError, "the manifest implies"),
+        broken("no_array", lambda f: (f / samples / "action.memmap").unlink()): (ValueError, "action.memmap is missing"),
+        broken("cut", lambda f: (f / samples / "point_cloud.memmap").write_bytes(b"\0" * 100)): (ValueError, "100 bytes"),
+        broken("no_meta", lambda f: (f / samples / "meta.json").unlink()): (ValueError, "corrupt demonstrations"),
+    }
+    for folder, (error, message) in cases.items():
+        with pytest.raises(error, match=message) as info:
+            load_demos(folder)
+        assert len(str(info.value).splitlines()) == 1, str(info.value)
+    # through the command line: `distill --demos` on a foreign folder
+    assert cli.main(["distill", "--demos", str(tmp_path / "foreign"), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not a dexart_lite demonstrations manifest" in err and len(err.splitlines()) == 1
+
+
+def test_cli_writes_demos(tmp_path, capsys):
+    out = tmp_path / "cli_demos"
+    assert cli.main(["data", "demos", "--task", "laptop", "--split", "seen", "--episodes-per-object", "1", "--noise",
+                     "0.1", "--seed", "3", "--out", str(out), "--num-points", "32", "--max-episode-steps", "4",
+                     "--objects", OBJECT, "--no-progress"]) == 0
+    assert f"{out}: 4 samples" in capsys.readouterr().out
+    manifest = demos_lib.read_manifest(out)
+    assert (manifest["seed"], manifest["noise"], manifest["samples"]) == (3, 0.1, 4)
+    assert set(manifest["versions"]) >= {"torch", "torchrl", "tensordict", "pybullet"}
+    assert load_demos(out).batch_size == (4,)
+    assert cli.main(["data", "demos", "--episodes-per-object", "0", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "episodes_per_object must be >= 1" in err and len(err.splitlines()) == 1
+
+
+# ------------------------------------------------------------------ DAgger and training
+def test_dagger_round_follows_the_student_and_labels_with_the_expert():
+    constant = np.full(22, 0.3, np.float32)
+    env = make("laptop", **TINY_ENV)
+    runs = {}
+    for beta in (0.0, 1.0, 0.5):
+        expert, student_calls = FakeExpert(env), []
+        student = lambda obs: student_calls.append(1) or constant  # noqa: E731
+        data, results, share = collect_dagger(env, expert, student, [(5, OBJECT), (6, OBJECT)], beta,
+                                              np.random.default_rng(0), [OBJECT], first_episode=7)
+        labels = torch.as_tensor(np.stack([FakeExpert.act(s) for s in data["observation"].numpy()]))
+        assert torch.equal(data["expert_action"], labels) and expert.calls == data.batch_size[0] == 2 * STEPS
+        assert data["episode"].unique().tolist() == [7, 8] and [r["steps"] for r in results] == [STEPS, STEPS]
+        is_student = (data["action"] == torch.as_tensor(constant)).all(-1)
+        is_expert = (data["action"] == labels).all(-1)
+        assert (is_student | is_expert).all()
+        runs[beta] = data
+        if beta == 0.0:
+            assert is_student.all() and share == 0.0 and len(student_calls) == 2 * STEPS
+        elif beta == 1.0:
+            assert is_expert.all() and share == 1.0 and not student_calls
+        else:
+            assert 0 < is_expert.sum() < 2 * STEPS and share == float(is_expert.float().mean())
+    env.close()
+    # the env followed the executed actions: same seeds, different trajectories
+    assert not torch.equal(runs[0.0]["observation"][1:STEPS], runs[1.0]["observation"][1:STEPS])
+
+
+def synthetic_samples(n=64, points=40, state_dim=32) -> TensorDict:
+    gen = torch.Generator().manual_seed(0)
+    state = torch.randn(n, state_dim, generator=gen)
+    return TensorDict({"point_cloud": torch.randn(n, points, 3, generator=gen), "observation": state,
+                       "expert_action": torch.tanh(state[:, :22])}, [n])
+
+
+@pytest.mark.parametrize("loss", ["mse", "nll"])
+def test_train_student_fits_the_expert_labels(loss):
+    torch.manual_seed(0)
+    actor_critic, data = make_actor_critic(32, 22), synthetic_samples()
+    log_std = action_log_std(actor_critic).clone()
+    with torch_threads(1):
+        losses = train_student(actor_critic, data, DistillConfig(batch_size=16, loss=loss, lr=3e-3), epochs=30)
+    assert len(losses) == 30
+    if loss == "mse":
+        assert losses[-1] < 0.5 * losses[0]
+        assert torch.equal(action_log_std(actor_critic), log_std)  # MSE leaves the log-std alone
+    else:
+        assert losses[-1] < losses[0] - 0.5 and not torch.equal(action_log_std(actor_critic), log_std)
+
+
+# ------------------------------------------------------------------ the whole run and its checkpoint
+@pytest.fixture(scope="module")
+def tiny_run(demos_dir, tmp_path_factory):
+    """BC on the two demonstration episodes, then 2 DAgger rounds; the buffer keeps 20 samples."""
+    cfg = tiny_distill_config(tmp_path_factory.mktemp("distill"), demos=str(demos_dir), max_samples=20, gif=True)
+    return cfg, distill(cfg)
+
+
+def test_tiny_run_logs_rounds_evaluates_and_reports(tiny_run):
+    cfg, result = tiny_run
+    history = result["history"]
+    assert [(h["round"], h["phase"]) for h in history] == [(0, "bc"), (1, "dagger"), (2, "dagger")]
+    assert [h["beta"] for h in history[1:]] == [0.5, 0.25]
+    assert [h["buffer"] for h in history] == [16, 20, 20]  # capped: the oldest samples went first
+    assert (result["expert_frames"], result["student_frames"]) == (16, 2 * STEPS)
+    run_dir = Path(result["checkpoint"]).parent
+    lines = (run_dir / "log.csv").read_text().splitlines()
+    assert len(lines) == 4 and lines[0].startswith("round,phase,beta")
+    for split in ("seen", "unseen"):
+        assert json.loads((run_dir / f"eval_{split}.json").read_text())["success_rate"] == result[f"{split}_success"]
+    report = (run_dir / "report.md").read_text()
+    assert "| 2 | dagger | 0.250 |" in report and "| unseen | **all** |" in report and "rounds.png" in report
+    assert (run_dir / "rounds.png").stat().st_size > 0 and (run_dir / "episode.gif").stat().st_size > 0
+    assert not (run_dir / "buffer").exists()
+
+
+def test_student_checkpoint_loads_strictly_and_evaluates_from_the_command_line(tiny_run, tmp_path, capsys):
+    cfg, result = tiny_run
+    payload = load_checkpoint(result["checkpoint"])
+    student = actor_critic_from_checkpoint(payload, result["checkpoint"])  # strict load into make_actor_critic
+    fresh = make_actor_critic(payload["dims"]["state_dim"], payload["dims"]["action_dim"], cfg.encoder)
+    assert student.state_dict().keys() == fresh.state_dict().keys()
+    assert payload["frames"] == 32 and payload["batches"] == 3 and len(payload["history"]) == 3
+    out = tmp_path / "eval.json"
+    assert cli.main(["eval", "--ckpt", result["checkpoint"], "--split", "unseen", "--episodes-per-object", "1",
+                     "--json", str(out)]) == 0
+    assert "| unseen | **all** |" in capsys.readouterr().out
+    assert json.loads(out.read_text())["episodes"] == len(objects_lib.list_objects("laptop", "unseen"))
+    with pytest.raises(ValueError, match="already holds a run"):
+        distill(cfg)
+
+
+def test_time_budget_stops_adding_rounds(tmp_path):
+    cfg = tiny_distill_config(tmp_path, max_minutes=1e-4, eval_episodes=0)  # collects its own demonstrations
+    result = distill(cfg)
+    assert [h["phase"] for h in result["history"]] == ["bc"] and result["seen_success"] is None
+    assert load_demos(tmp_path / "run" / "demos").batch_size == (STEPS,)
+
+
+# ------------------------------------------------------------------ bad input
+@pytest.mark.parametrize("overrides, message", [
+    ({"method": "ppo"}, "unknown method 'ppo'; valid choices: bc, dagger"),
+    ({"loss": "l1"}, "valid choices: mse, nll"),
+    ({"split": "unseen"}, "valid choices: seen, seen_half"),
+    ({"encoder": "huge"}, "valid choices: small, medium, large"),
+    ({"beta": 1.5}, r"beta must be in \[0, 1\], got 1.5"),
+    ({"beta": -0.1}, r"beta must be in \[0, 1\]"),
+    ({"demo_episodes_per_object": 0}, "demo_episodes_per_object must be >= 1"),
+    ({"episodes_per_round": 0}, "episodes_per_round must be >= 1"),
+    ({"rounds": -1}, "rounds must be >= 1"),
+    ({"epochs": 0}, "epochs must be >= 1"),
+    ({"objects": "laptop_nope"}, "valid choices: laptop_"),
+])
+def test_bad_configs_name_the_valid_choices(tmp_path, overrides, message):
+    with pytest.raises(ValueError, match=message):
+        validate(tiny_distill_config(tmp_path, **overrides))
+
+
+def test_cli_prints_one_line_errors_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "run"
+    for flags, message in ((["--method", "ppo"], "valid choices: bc, dagger"), (["--beta", "2"], "[0, 1]"),
+                           (["--episodes-per-round", "0"], "episodes_per_round must be >= 1")):
+        assert cli.main(["distill", *flags, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1 and err.startswith("dexart-lite distill: error:")
+    assert not out.exists()

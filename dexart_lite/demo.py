@@ -1,19 +1,23 @@
-"""The main job on defaults (what ``make demo`` runs): PPO on Laptop, evaluated on seen and unseen laptops.
+"""The main job on defaults (what ``make demo`` runs): a point-cloud policy that opens laptops, seen and unseen.
 
-    dexart-lite demo                      # about 8 minutes on 2 CPU cores (6 of them training)
-    dexart-lite demo --minutes 30         # a longer training budget
+    dexart-lite demo                      # about 8 minutes on 2 CPU cores
+    dexart-lite demo --minutes 15         # a longer distillation budget
 
-It trains the small-PointNet policy with ``PRESETS["demo"]`` (the ``cpu`` preset: 4k frames per
-batch, 5 epochs) until the time budget runs out, evaluates it with deterministic actions on the
-seen (training) and unseen laptops, and writes into a fresh folder ``demo_out/<date-time>/``:
+It distils the scripted laptop expert (``scripted.FeedbackLidSolver``, which reads the simulator)
+into the small-PointNet PPO actor-critic, which sees only the point cloud and the robot's state:
+expert demonstrations with noise on the executed actions, behaviour cloning, then DAgger rounds in
+which the student drives and the expert labels every state it visits, until the time budget is
+spent (``DEMO``). Then it evaluates the student with deterministic actions on the seen (training)
+and the unseen laptops and writes into a fresh folder ``demo_out/<date-time>/``:
 
-- ``report.md``: configuration, learning curve and the success table;
-- ``learning_curve.png``: training return and success against frames;
-- ``episode.gif``: one evaluation episode with the stage and reward on every frame;
-- ``checkpoint.pt``: reload with ``dexart-lite eval --ckpt ...`` or train on with ``dexart-lite train --resume``.
+- ``report.md``: configuration, the rounds and the success table;
+- ``rounds.png``: success of each round's episodes and of the final student;
+- ``episode.gif``: the student on an unseen laptop, with the stage and reward on every frame;
+- ``eval_seen.json``, ``eval_unseen.json``: the evaluation (``success_rate`` per object and overall);
+- ``checkpoint.pt``: a PPO checkpoint (``dexart-lite eval --ckpt ...``).
 
-A few minutes of PPO is far too short to open a laptop (DexArt trains ~15M frames); the demo shows
-the whole pipeline and the starting point. ``benchmarks/bench_learning.py`` is the long run.
+This is imitation of a privileged expert, not reinforcement learning: ``dexart-lite train`` is PPO
+(far too slow to open a laptop in minutes on a CPU; see the README's learning sections).
 """
 
 from __future__ import annotations
@@ -22,26 +26,32 @@ import argparse
 import time
 from pathlib import Path
 
-from dexart_lite.rl import ppo
+from dexart_lite.imitation.distill import DistillConfig, distill
 from dexart_lite.utils import fast_mode
 
+# The demo's distillation: DistillConfig's defaults with a time budget and a shorter evaluation.
+DEMO = {"task": "laptop", "method": "dagger", "encoder": "small", "max_minutes": 6.0, "eval_episodes": 2,
+        "gif": True}
+OUT = Path("demo_out")
 
-def demo_config(out: Path, minutes: float | None = None):
-    """``PRESETS["demo"]`` writing to ``out``; in fast mode (tests) a run of a few hundred frames."""
-    overrides = {"out": str(out)}
+
+def demo_config(out: Path, minutes: float | None = None) -> DistillConfig:
+    """``DEMO`` writing to ``out``; in fast mode (tests) a run of a few dozen frames."""
+    overrides = {**DEMO, "out": str(out)}
     if minutes is not None:
         overrides["max_minutes"] = minutes
     if fast_mode():
-        overrides.update(frames=800, frames_per_batch=400, minibatch=200, epochs=1, num_points=64,
-                         max_episode_steps=20, eval_episodes=1, progress=False)
-    return ppo.preset("demo", **overrides)
+        overrides.update(num_points=32, max_episode_steps=12, demo_episodes_per_object=1, rounds=1,
+                         episodes_per_round=1, epochs=1, epochs_per_round=1, eval_episodes=1, progress=False,
+                         objects="laptop_11cbb00f39", threads=1)
+    return DistillConfig(**overrides)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=Path(ppo.PRESETS["demo"]["out"]),
+    parser.add_argument("--out", type=Path, default=OUT,
                         help="parent folder; each demo writes a new <date-time> folder inside it")
     parser.add_argument("--minutes", type=float, default=None,
-                        help=f"training time budget (default {ppo.PRESETS['demo']['max_minutes']})")
+                        help=f"distillation time budget (default {DEMO['max_minutes']:g})")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,11 +61,13 @@ def run(args: argparse.Namespace) -> int:
     while out.exists():  # two demos in the same second: never reuse a folder
         out = out.with_name(out.name + "_")
     cfg = demo_config(out, args.minutes)
-    print(f"dexart-lite demo: PPO on {cfg.task} ({cfg.encoder} PointNet) for up to {cfg.max_minutes:g} min, "
-          f"then {cfg.eval_episodes} evaluation episodes per seen and unseen object -> {out}")
+    print(f"dexart-lite demo: distil the scripted {cfg.task} expert into a {cfg.encoder}-PointNet student "
+          f"(DAgger, {cfg.max_minutes:g} min budget), then {cfg.eval_episodes} evaluation episodes per seen "
+          f"and unseen object -> {out}")
     start = time.perf_counter()
-    result = ppo.train(cfg)
-    print(f"\ndone in {(time.perf_counter() - start) / 60:.1f} min, {result['frames']:,} training frames")
+    result = distill(cfg)
+    print(f"\ndone in {(time.perf_counter() - start) / 60:.1f} min: {result['expert_frames']:,} expert frames, "
+          f"{result['student_frames']:,} student frames")
     for split, res in result["eval"].items():
         print(f"  {split:6s} success {res['success_rate']:.2f}, mean stage reached {res['mean_max_stage']:.2f} "
               f"({res['episodes']} episodes)")

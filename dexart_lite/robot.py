@@ -112,6 +112,7 @@ class Robot:
         self._arm_q0 = np.zeros(6)
         self._arm_qdot = np.zeros(6)
         self.reset()
+        self.init_palm_pos = self.read().palm_pos.copy()  # (3,) m, world: the palm at every reset
 
     # ----------------------------------------------------------------------------- reset
     def reset(self, qpos: np.ndarray | None = None) -> None:

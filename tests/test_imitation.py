@@ -315,3 +315,25 @@ def test_cli_prints_one_line_errors_and_writes_nothing(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert message in err and len(err.splitlines()) == 1 and err.startswith("dexart-lite distill: error:")
     assert not out.exists()
+
+
+def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys):
+    """benchmarks/bench_distill.py in fast mode writes the documented keys; run again, it reads the
+    finished seed back instead of training it again."""
+    import importlib.util
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_distill.py"
+    spec = importlib.util.spec_from_file_location("bench_distill", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    argv = ["--task", "laptop", "--seeds", "0", "--runs", str(tmp_path / "runs"), "--json", str(tmp_path / "d.json")]
+    first = bench.main(argv)
+    for key in ("task", "method", "seeds", "seen_success", "unseen_success", "per_seed", "expert_frames",
+                "student_frames", "wall_time_s", "command", "machine"):
+        assert key in first, key
+    assert (tmp_path / "d.png").is_file()
+    capsys.readouterr()
+    again = bench.main(argv)
+    assert "finished before, read back" in capsys.readouterr().out
+    assert again["per_seed"][0]["wall_time_s"] == first["per_seed"][0]["wall_time_s"]

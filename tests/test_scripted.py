@@ -100,3 +100,51 @@ def test_action_noise_of_ppo_init_breaks_the_solver():
 def test_bad_action_noise_is_rejected(noise):
     with pytest.raises(ValueError, match="action_noise must be a finite std >= 0"):
         solve("laptop", object_names=["laptop_11cbb00f39"], progress=False, action_noise=noise)
+
+
+# ----------------------------------------------------------------------------- the imitable lid expert
+def test_pursue_on_an_l_shaped_path():
+    """Pure pursuit, checked by hand on the path (0,0,0) -> (1,0,0) -> (1,1,0): a point beside the
+    first leg aims 0.3 m further along it; near the corner the carrot turns onto the second leg; past
+    the end it stops at the end."""
+    import numpy as np
+
+    from dexart_lite.scripted import pursue
+
+    path = [np.zeros(3), np.array([1.0, 0, 0]), np.array([1.0, 1, 0])]
+    goal, segment = pursue(path, np.array([0.2, -0.5, 0.0]), 0.3)
+    np.testing.assert_allclose(goal, [0.5, 0, 0], atol=1e-12)
+    assert segment == 0
+    goal, segment = pursue(path, np.array([0.9, -0.1, 0.0]), 0.3)
+    np.testing.assert_allclose(goal, [1.0, 0.2, 0], atol=1e-12)
+    assert segment == 1
+    goal, segment = pursue(path, np.array([1.0, 3.0, 0.0]), 0.3)
+    np.testing.assert_allclose(goal, [1.0, 1.0, 0], atol=1e-12)
+
+
+def test_laptop_expert_is_memoryless():
+    """The laptop expert is a function of the current state only (what a student can copy): midway
+    through an episode, a fresh expert that never saw the episode gives the same action as the one
+    that drove it, in every region of its law (approach, lift, wrap, ride)."""
+    import numpy as np
+
+    from dexart_lite.scripted import FeedbackLidSolver
+
+    env = make("laptop", object_names=["laptop_11cbb00f39"], num_points=32)
+    try:
+        policy = ScriptedPolicy(env)
+        obs, _ = env.reset(seed=0, options={"object": "laptop_11cbb00f39"})
+        regions, done, t = set(), False, 0
+        while not done:
+            action = policy(obs)
+            assert isinstance(policy.solver, FeedbackLidSolver)
+            if t % 4 == 0 or policy.solver.region not in regions:  # a fresh expert reads the object's URDF: not every step
+                regions.add(policy.solver.region)
+                fresh = FeedbackLidSolver(env.unwrapped).act(env.unwrapped._state)
+                np.testing.assert_allclose(np.clip(fresh, -1, 1), action, atol=1e-5)  # reset-pose rounding
+            obs, _, terminated, truncated, info = env.step(action)
+            done, t = terminated or truncated, t + 1
+        assert info["success"]
+        assert {"approach", "lift", "wrap", "ride"} <= regions, regions
+    finally:
+        env.close()

@@ -69,13 +69,13 @@ class DistillConfig:
     objects: str | None = field(default=None, metadata={"help": "comma-separated training objects (default: the split)"})
     demos: str | None = field(default=None, metadata={"help": "start from this `dexart-lite data demos` folder"})
     demo_episodes_per_object: int = field(default=4, metadata={"help": "expert episodes per object for BC"})
-    demo_noise: float = field(default=0.2, metadata={"help": "std of the noise on the expert's executed actions"})
-    rounds: int = field(default=3, metadata={"help": "DAgger rounds after BC"})
+    demo_noise: float = field(default=0.15, metadata={"help": "std of the noise on the expert's executed actions"})
+    rounds: int = field(default=6, metadata={"help": "DAgger rounds after BC"})
     episodes_per_round: int = field(default=2, metadata={"help": "DAgger episodes per object and round"})
-    epochs: int = field(default=30, metadata={"help": "BC epochs over the demonstrations"})
-    epochs_per_round: int = field(default=10, metadata={"help": "epochs over the aggregate buffer after each round"})
+    epochs: int = field(default=40, metadata={"help": "BC epochs over the demonstrations"})
+    epochs_per_round: int = field(default=6, metadata={"help": "epochs over the aggregate buffer after each round"})
     beta: float = field(default=0.5, metadata={"help": "DAgger: probability of executing the expert's action, round 1"})
-    beta_decay: float = field(default=0.5, metadata={"help": "DAgger: beta is multiplied by this after each round"})
+    beta_decay: float = field(default=0.6, metadata={"help": "DAgger: beta is multiplied by this after each round"})
     lr: float = field(default=1e-3, metadata={"help": "Adam learning rate"})
     batch_size: int = 256
     weight_decay: float = field(default=0.0, metadata={"help": "Adam weight decay"})
@@ -85,7 +85,7 @@ class DistillConfig:
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250)"})
     seed: int = 0
-    eval_episodes: int = field(default=5, metadata={"help": "evaluation episodes per object and split (0: none)"})
+    eval_episodes: int = field(default=3, metadata={"help": "evaluation episodes per object and split (0: none)"})
     eval_seed: int = 100
     out: str = field(default="runs/distill", metadata={"help": "output folder"})
     gif: bool = field(default=False, metadata={"help": "save a GIF of one evaluation episode on an unseen object"})

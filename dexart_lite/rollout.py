@@ -64,6 +64,7 @@ class Noisy:
             raise ValueError(f"noise must be a finite std >= 0, got {sigma}")
         self.policy, self.sigma, self.rng = policy, float(sigma), rng
         self.label: np.ndarray | None = None
+        self.privileged: np.ndarray | None = None
 
     def reset(self) -> None:
         if hasattr(self.policy, "reset"):
@@ -71,6 +72,7 @@ class Noisy:
 
     def __call__(self, obs: dict) -> np.ndarray:
         self.label = np.asarray(self.policy(obs), dtype=np.float32)
+        self.privileged = getattr(self.policy, "privileged", None)  # an expert's view of the state, if any
         noise = self.rng.standard_normal(self.label.shape) if self.sigma > 0 else 0.0
         return np.clip(self.label + self.sigma * noise, -1.0, 1.0).astype(np.float32)
 

@@ -115,6 +115,7 @@ def hand_shape(finger=(0.0, 0.0, 0.0, 0.0), thumb=(0.3, 0.0, 0.0, 0.0), spread: 
 
 
 OPEN = hand_shape()
+PRIVILEGED_DIM = 20  # length of Solver.privileged
 
 
 # ----------------------------------------------------------------------------- the part's frame
@@ -165,6 +166,16 @@ class Solver:
     def act(self, state) -> np.ndarray:
         self.phase_steps += 1
         return self.step(state)
+
+    def privileged(self, state) -> np.ndarray:
+        """What the expert knows and the student must see in its point cloud, ``(PRIVILEGED_DIM,)``:
+        the functional part's frame (position from the robot base, m; the first two columns of its
+        rotation), its joint angle and target (rad), its extent in its own frame (min and max corner,
+        m) and the grasp point from the robot base (m). Distillation uses it as an auxiliary target."""
+        part = self.frame.pose()
+        base = np.asarray(self.env.ROBOT_BASE, float)
+        return np.concatenate([part.p - base, part.R[:, 0], part.R[:, 1], [state.q, state.obj.joint_target],
+                               self.frame.mesh_bounds.ravel(), state.handle_pos - base]).astype(np.float32)
 
     def step(self, state) -> np.ndarray:
         raise NotImplementedError
@@ -718,12 +729,14 @@ class ScriptedPolicy:
         check_choice("task with a scripted solver", self.env.CATEGORY, SOLVERS)
         self.solver: Solver | None = None
         self._episode = None
+        self.privileged: np.ndarray | None = None  # Solver.privileged of the last call
 
     def __call__(self, obs=None) -> np.ndarray:
         env = self.env
         key = (id(env._state.obj), env._base_at_reset.tobytes())
         if env._t == 0 or self.solver is None or key != self._episode:
             self.solver, self._episode = SOLVERS[env.CATEGORY](env), key
+        self.privileged = self.solver.privileged(env._state)  # of the state this action answers
         return np.clip(self.solver.act(env._state), -1.0, 1.0)
 
 

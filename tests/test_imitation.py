@@ -251,7 +251,7 @@ def test_tiny_run_logs_rounds_evaluates_and_reports(tiny_run):
     cfg, result = tiny_run
     history = result["history"]
     assert [(h["round"], h["phase"]) for h in history] == [(0, "bc"), (1, "dagger"), (2, "dagger")]
-    assert [h["beta"] for h in history[1:]] == [0.5, 0.25]
+    assert [h["beta"] for h in history[1:]] == pytest.approx([cfg.beta, cfg.beta * cfg.beta_decay])
     assert [h["buffer"] for h in history] == [16, 20, 20]  # capped: the oldest samples went first
     assert (result["expert_frames"], result["student_frames"]) == (16, 2 * STEPS)
     run_dir = Path(result["checkpoint"]).parent
@@ -260,7 +260,7 @@ def test_tiny_run_logs_rounds_evaluates_and_reports(tiny_run):
     for split in ("seen", "unseen"):
         assert json.loads((run_dir / f"eval_{split}.json").read_text())["success_rate"] == result[f"{split}_success"]
     report = (run_dir / "report.md").read_text()
-    assert "| 2 | dagger | 0.250 |" in report and "| unseen | **all** |" in report and "rounds.png" in report
+    assert f"| 2 | dagger | {cfg.beta * cfg.beta_decay:.3f} |" in report and "| unseen | **all** |" in report and "rounds.png" in report
     assert (run_dir / "rounds.png").stat().st_size > 0 and (run_dir / "episode.gif").stat().st_size > 0
     assert not (run_dir / "buffer").exists()
 

@@ -30,6 +30,9 @@ One sample per env step (``S`` samples, ``N`` = observed + 96 imagined points, `
     object         (S,) int64          index into the manifest's ``objects``
     episode        (S,) int64          episode index (order of collection)
     t              (S,) int64          step within the episode (0: the reset observation)
+    privileged     (S, 20) float32     the expert's view of the object (``scripted.Solver.privileged``:
+                                       part pose, joint angle and target, extent, grasp point); zeros
+                                       for an expert without one. Distillation's auxiliary target.
 """
 
 from __future__ import annotations
@@ -51,13 +54,14 @@ from dexart_lite.rollout import noisy, per_object_summary, run_episodes
 from dexart_lite.utils import check_choice
 
 FORMAT = "dexart_lite.demos"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: + privileged
 MANIFEST = "manifest.json"
 SAMPLES = "samples"  # the TensorDict.memmap folder inside OUT
 SPLITS = ("seen", "seen_half", "unseen")
 MANIFEST_KEYS = ("task", "split", "objects", "num_points", "cloud_points", "state_dim", "samples", "episodes",
                  "expert_success_rate", "expert_mean_max_stage", "noise", "seed")
 ACTION_DIM = 22
+PRIVILEGED_DIM = 20  # scripted.PRIVILEGED_DIM (not imported: scripted pulls in trimesh and yourdfpy)
 # key -> (shape after the sample dimension, with N / D for the cloud and state sizes; dtype)
 SAMPLE_SPECS = {
     "point_cloud": (("N", 3), torch.float32),
@@ -70,6 +74,7 @@ SAMPLE_SPECS = {
     "object": ((), torch.int64),
     "episode": ((), torch.int64),
     "t": ((), torch.int64),
+    "privileged": ((PRIVILEGED_DIM,), torch.float32),
 }
 
 
@@ -92,7 +97,9 @@ class Recorder:
         self.rows.append((np.array(obs["point_cloud"], np.float32), np.array(obs["imagined_mask"], np.int8),
                           np.array(obs["state"], np.float32), np.array(self.labelled.label, np.float32),
                           np.clip(np.asarray(action, np.float32), -1.0, 1.0), int(info["stage"]),
-                          bool(info["success"]), self.object_index[info["object_name"]], self.episode, t))
+                          bool(info["success"]), self.object_index[info["object_name"]], self.episode, t,
+                          np.zeros(PRIVILEGED_DIM, np.float32) if getattr(self.labelled, "privileged", None) is None
+                          else np.asarray(self.labelled.privileged, np.float32)))
 
     def samples(self) -> TensorDict:
         """The recorded steps as a ``TensorDict`` of batch size ``[S]`` (keys: ``SAMPLE_SPECS``)."""

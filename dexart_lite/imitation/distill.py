@@ -43,7 +43,7 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
-from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic
+from dexart_lite.models.actor_critic import HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES, save_encoder
 from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import save_checkpoint
@@ -80,6 +80,9 @@ class DistillConfig:
     batch_size: int = 256
     weight_decay: float = field(default=0.0, metadata={"help": "Adam weight decay"})
     loss: str = field(default="mse", metadata={"help": "mse on the mean action, or nll (Gaussian, trains the log-std)"})
+    aux_coef: float = field(default=1.0, metadata={"help": "weight of the auxiliary loss: the trunk's features also "
+                            "predict the expert's privileged object state (a linear head, dropped after training; "
+                            "0: off)"})
     init_log_std: float = field(default=0.0, metadata={"help": "initial log std of the student's actions (for PPO)"})
     max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
@@ -126,6 +129,8 @@ def validate(cfg: DistillConfig) -> None:
             raise ValueError(f"{name} must be in [0, 1], got {getattr(cfg, name)}")
     if not (math.isfinite(cfg.demo_noise) and cfg.demo_noise >= 0):
         raise ValueError(f"demo_noise must be a finite std >= 0, got {cfg.demo_noise}")
+    if not (math.isfinite(cfg.aux_coef) and cfg.aux_coef >= 0):
+        raise ValueError(f"aux_coef must be a finite weight >= 0, got {cfg.aux_coef}")
     if not (cfg.lr > 0 and cfg.weight_decay >= 0 and math.isfinite(cfg.init_log_std)):
         raise ValueError(f"need lr > 0, weight_decay >= 0 and a finite init_log_std, got {cfg.lr}, "
                          f"{cfg.weight_decay}, {cfg.init_log_std}")
@@ -138,12 +143,23 @@ def validate(cfg: DistillConfig) -> None:
 
 # ----------------------------------------------------------------------------- learning
 def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig,
-                  epochs: int) -> list[float]:
+                  epochs: int, aux_head: torch.nn.Module | None = None) -> list[float]:
     """Regress the policy mean onto ``data["expert_action"]`` for ``epochs`` shuffled passes (Adam,
     minibatches of ``cfg.batch_size``); returns the mean loss of each epoch. ``data``: a TensorDict
-    of samples (``demos.SAMPLE_SPECS``), in memory or memory-mapped."""
+    of samples (``demos.SAMPLE_SPECS``), in memory or memory-mapped.
+
+    With ``aux_head`` (a Linear from the trunk's 320 features to ``data["privileged"]``'s size) and
+    ``cfg.aux_coef > 0``, the loss adds ``aux_coef`` times the MSE of the head's prediction of the
+    privileged object state (standardised over ``data``): the point-cloud encoder is made to carry
+    the lid's pose and shape, which the action regression alone teaches it too slowly (a student given
+    that state directly, as numbers, imitates the laptop expert; one given only the cloud did not)."""
     policy = actor_critic.get_policy_operator()  # trunk + policy head; the value head is not trained
-    optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    use_aux = aux_head is not None and cfg.aux_coef > 0
+    params = list(policy.parameters()) + (list(aux_head.parameters()) if use_aux else [])
+    optimizer = torch.optim.Adam(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
+    if use_aux:
+        privileged = data["privileged"]
+        mean, std = privileged.mean(0), privileged.std(0).clamp_min(1e-3)  # constant entries: no signal, no blow-up
     generator = torch.Generator().manual_seed(cfg.seed)
     n = data.batch_size[0]
     losses = []
@@ -158,6 +174,9 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
                     loss = (out["loc"] - target).pow(2).mean()
                 else:  # Gaussian NLL per action, with the state-independent scale
                     loss = -torch.distributions.Normal(out["loc"], out["scale"]).log_prob(target).sum(-1).mean()
+                if use_aux:
+                    goal = (batch["privileged"] - mean) / std
+                    loss = loss + cfg.aux_coef * (aux_head(out[HIDDEN_KEY]) - goal).pow(2).mean()
                 optimizer.zero_grad()
                 loss.backward()
                 optimizer.step()
@@ -173,6 +192,7 @@ class Mixture:
     def __init__(self, expert: Policy, student: Policy, beta: float, rng: np.random.Generator):
         self.expert, self.student, self.beta, self.rng = expert, student, beta, rng
         self.label: np.ndarray | None = None
+        self.privileged: np.ndarray | None = None
         self.expert_steps = self.steps = 0
 
     def reset(self) -> None:
@@ -182,6 +202,7 @@ class Mixture:
 
     def __call__(self, obs: dict) -> np.ndarray:
         self.label = np.asarray(self.expert(obs), dtype=np.float32)  # every step: the expert follows the episode
+        self.privileged = getattr(self.expert, "privileged", None)
         self.steps += 1
         if self.rng.random() < self.beta:
             self.expert_steps += 1
@@ -233,6 +254,8 @@ def distill(cfg: DistillConfig) -> dict:
         dims = {"num_points": env.observation_space["point_cloud"].shape[0],
                 "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0]}
         actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std)
+        # the auxiliary head (trunk features -> privileged object state) lives only during distillation
+        aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
         buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
         history: list[dict] = []
         frames = {"expert": manifest["samples"], "student": 0}
@@ -265,7 +288,7 @@ def distill(cfg: DistillConfig) -> dict:
             # ---- 2. behaviour cloning on the demonstrations
             tick = time.perf_counter()
             buffer.extend(demos)
-            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs)
+            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs, aux_head)
             expert = {"success_rate": manifest["expert_success_rate"],
                       "mean_max_stage": manifest["expert_mean_max_stage"]}
             advance(log_round("bc", 1.0, len(manifest["episodes"]), expert, manifest["samples"], losses, 1.0,
@@ -288,7 +311,7 @@ def distill(cfg: DistillConfig) -> dict:
                 frames["student"] += samples.batch_size[0]
                 buffer.extend(samples)
                 collected = time.perf_counter()
-                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round)
+                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round, aux_head)
                 advance(log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0],
                                   losses, share, collected - tick, time.perf_counter() - collected))
         finally:

@@ -59,7 +59,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--encoder", default="small")
     parser.add_argument("--runs", type=Path, default=Path("runs"), help="parent of the per-seed run folders")
     parser.add_argument("--json", type=Path, help="default benchmarks/results/distill_<task>.json")
+    parser.add_argument("--collect", type=Path, nargs="+", metavar="RUN_DIR",
+                        help="summarise these finished `dexart-lite distill` folders instead of running seeds")
     args = parser.parse_args(argv)
+    if args.collect:
+        return collect(args, argv)
     path = args.json or RESULTS / f"distill_{args.task}.json"
     overrides = {}
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -77,24 +81,52 @@ def main(argv=None) -> dict:
         print(f"seed {seed}: seen {per_seed[-1]['seen_success']:.2f}, unseen {per_seed[-1]['unseen_success']:.2f}, "
               f"{per_seed[-1]['wall_time_s'] / 60:.1f} min")
 
-    mean = lambda key: float(np.mean([r[key] for r in per_seed]))  # noqa: E731
-    std = lambda key: float(np.std([r[key] for r in per_seed]))  # noqa: E731
-    result = {"task": args.task, "method": args.method, "encoder": args.encoder, "seeds": args.seeds,
-              "seen_success": mean("seen_success"), "unseen_success": mean("unseen_success"),
-              "seen_success_std": std("seen_success"), "unseen_success_std": std("unseen_success"),
-              "expert_frames": [r["expert_frames"] for r in per_seed],
-              "student_frames": [r["student_frames"] for r in per_seed],
-              "wall_time_s": [round(r["wall_time_s"], 1) for r in per_seed],
-              "eval_episodes_per_object": per_seed[0]["config"]["eval_episodes"],
-              "paper_rl_no_pretrain": dict(zip(("seen", "unseen"), PAPER_RL_NO_PRETRAIN[args.task])),
-              "per_seed": per_seed, "command": command_line("benchmarks/bench_distill.py", argv),
-              "machine": machine_info(), "fast_mode": fast_mode(),
-              "note": "distilled students (privileged scripted expert -> point-cloud policy), not RL"}
+    result = summary(per_seed, args.task, args.method, args.encoder, argv)
     write_json(path, result)
     plot(per_seed, path.with_suffix(".png"), f"{args.method} on {args.task} ({args.encoder} PointNet)")
     print(f"{args.task} {args.method}: seen {result['seen_success']:.2f} +- {result['seen_success_std']:.2f}, "
           f"unseen {result['unseen_success']:.2f} +- {result['unseen_success_std']:.2f}; wrote {path}")
     return result
+
+
+def collect(args, argv) -> dict:
+    """The JSON and PNG of ``main`` from finished run folders (each holds checkpoint.pt, eval_*.json)."""
+    from dexart_lite.rl.checkpoint import load_checkpoint
+
+    per_seed = []
+    for run in args.collect:
+        payload = load_checkpoint(run / "checkpoint.pt")
+        evals = {split: json.loads((run / f"eval_{split}.json").read_text()) for split in ("seen", "unseen")}
+        history = payload["history"]
+        per_seed.append({"seed": payload["config"]["seed"], "run": str(run), "config": payload["config"],
+                         "seen_success": evals["seen"]["success_rate"], "unseen_success": evals["unseen"]["success_rate"],
+                         "mean_max_stage": {s: e["mean_max_stage"] for s, e in evals.items()},
+                         "expert_frames": history[-1]["expert_frames"], "student_frames": history[-1]["student_frames"],
+                         "wall_time_s": history[-1]["wall_s"], "history": history})
+    cfg = per_seed[0]["config"]
+    path = args.json or RESULTS / f"distill_{cfg['task']}.json"
+    result = summary(per_seed, cfg["task"], cfg["method"], cfg["encoder"], argv)
+    result["wall_time_note"] = "wall_time_s: training and collection, up to the last round (evaluation not included)"
+    write_json(path, result)
+    plot(per_seed, path.with_suffix(".png"), f"{cfg['method']} on {cfg['task']} ({cfg['encoder']} PointNet)")
+    print(f"wrote {path}")
+    return result
+
+
+def summary(per_seed: list[dict], task: str, method: str, encoder: str, argv) -> dict:
+    mean = lambda key: float(np.mean([r[key] for r in per_seed]))  # noqa: E731
+    std = lambda key: float(np.std([r[key] for r in per_seed]))  # noqa: E731
+    return {"task": task, "method": method, "encoder": encoder, "seeds": [r["seed"] for r in per_seed],
+            "seen_success": mean("seen_success"), "unseen_success": mean("unseen_success"),
+            "seen_success_std": std("seen_success"), "unseen_success_std": std("unseen_success"),
+            "expert_frames": [r["expert_frames"] for r in per_seed],
+            "student_frames": [r["student_frames"] for r in per_seed],
+            "wall_time_s": [round(r["wall_time_s"], 1) for r in per_seed],
+            "eval_episodes_per_object": per_seed[0]["config"]["eval_episodes"],
+            "paper_rl_no_pretrain": dict(zip(("seen", "unseen"), PAPER_RL_NO_PRETRAIN[task])),
+            "per_seed": per_seed, "command": command_line("benchmarks/bench_distill.py", argv),
+            "machine": machine_info(), "fast_mode": fast_mode(),
+            "note": "distilled students (privileged scripted expert -> point-cloud policy), not RL"}
 
 
 def plot(per_seed: list[dict], path: Path, title: str) -> None:

@@ -412,15 +412,19 @@ class FeedbackLidSolver(LidSolver):
 
     The phases of ``LidSolver`` become regions of the state:
 
-    * lid below ``wrap_at`` (the lift): the palm follows a fixed path start -> above beside the lid ->
+    * lid below ``wrap_q`` (the lift; ``wrap_q`` is 0.05 rad short of ``LidSolver.wrap_at``): the palm follows a fixed path start -> above beside the lid ->
       down beside it -> thumb under the middle of the free edge (pure pursuit, ``pursue``); once the
       thumb is there (the palm within ``NEAR`` of the thumb pose on the arc of the lid turned 0 to
       ``LEAD`` further), the target is the thumb pose of the lid turned further: the lid turns up on it.
-    * lid at ``wrap_at`` or more (the wrap): the palm follows clear (thumb down off the inner face)
-      -> over the edge, off the inner face -> palm on the inner face; the fingers curl once the palm
+    * lid at ``wrap_q`` or more (the wrap): the palm follows clear (thumb straight down off the inner
+      face, hand and thumb still in their lifting pose) -> over the edge, off the inner face -> palm on
+      the inner face; the fingers curl once the palm
       is within ``CLOSE_AT`` of the inner-face pose; with the fingers curled (read from the hand's
       joint angles) and the palm within ``HOLD`` of the grasp, the hand rides the lid to its target.
       A grasp lost on the way opens the fingers and the path starts again from where the hand is.
+
+    ``region`` names the rule that chose the last action ("approach", "lift", "wrap", "close" or
+    "ride"), for plots and tests; it is an output, never an input.
     """
 
     LOOKAHEAD = 0.04  # m
@@ -440,6 +444,7 @@ class FeedbackLidSolver(LidSolver):
         # centre line, which flips across the middle of DexArt's position randomisation (laptops at
         # y = -0.05 + U[0, 0.1) m): a student regressing on both would average them and go neither way.
         self.side = self.FIXED_SIDE.get(env.CATEGORY, self.side)
+        self.region = "approach"
         self.wrap_q = self.wrap_at - 0.05  # lid angle (rad) from which the wrap takes over
         self._flex = np.r_[1:4, 5:8, 9:12]  # MCP, PIP, DIP of index, middle, ring among the 16 hand joints
         self._open, self._curl = (float(np.mean(shape[self._flex])) for shape in (self.wrap_open, self.wrap_shape))
@@ -455,11 +460,11 @@ class FeedbackLidSolver(LidSolver):
         if q < self.wrap_q:
             arc = [self.thumb_pose(self.frame.pose(q + d)).p for d in np.linspace(0.0, self.LEAD, 5)]
             if min(np.linalg.norm(p - palm) for p in arc) < self.NEAR:  # lift: the lid turns up on the thumb
-                self.region = 'lift'
+                self.region = "lift"
                 q_goal = q + np.clip(self.wrap_at + 0.05 - q, 0.03, self.LEAD)
                 a, _, _ = self.action(s, self.thumb_pose(self.frame.pose(q_goal)), self.lift_shape)
                 return a
-            self.region = 'approach'
+            self.region = "approach"
             beside = self.thumb_pose(lid, side=self.side * (0.5 * self.width + 0.075))
             top = max(lid.apply(c)[2] for c in self.corners)
             above = beside.p + np.array([0.0, 0.0, max(0.0, top + 0.125 - beside.p[2])])
@@ -469,15 +474,15 @@ class FeedbackLidSolver(LidSolver):
         grasp = lid @ self.wrap_pose()
         err, curl = float(np.linalg.norm(grasp.p - palm)), self.curl(s)
         if err < self.HOLD and curl > self.CURLED:  # ride the grasp to the target
-            self.region = 'ride'
+            self.region = "ride"
             q_goal = q + np.clip(1.5 * (target - q), -0.25, 0.25)
             a, _, _ = self.action(s, self.frame.pose(q_goal) @ self.wrap_pose(), self.wrap_shape, speed=0.5)
             return a
         if err < self.CLOSE_AT or (err < self.HOLD and curl > self.CURLING):  # curl the fingers over the edge
-            self.region = 'close'
+            self.region = "close"
             a, _, _ = self.action(s, grasp, self.wrap_shape)
             return a
-        self.region = 'wrap'
+        self.region = "wrap"
         # From the lifting pose straight down off the inner face first (a thumb dragged up past the
         # edge flings the lid open), then over the edge and onto the inner face, slowly near the lid.
         path = [self.thumb_pose(lid).p, self.thumb_pose(lid, off=0.05).p, (lid @ self.wrap_pose(out=0.05, up=0.03)).p,

@@ -223,7 +223,11 @@ def collect_dagger(env, expert: Policy, student: Policy, episodes: list[tuple[in
 # ----------------------------------------------------------------------------- the run
 def distill(cfg: DistillConfig) -> dict:
     """Demonstrations -> BC -> DAgger rounds -> checkpoint, evaluation, report; see the module docstring."""
+    import logging
+
     from torchrl.data import LazyMemmapStorage, ReplayBuffer
+
+    logging.getLogger("torchrl").setLevel(logging.WARNING)  # its INFO line on every new storage breaks the bar
 
     from dexart_lite.envs import make
     from dexart_lite.scripted import ScriptedPolicy

@@ -49,7 +49,10 @@ def write_report(path: Path, cfg, manifest: dict, history: list[dict], evals: li
         f"- expert frames {last['expert_frames']:,} ({len(manifest['episodes'])} demonstration episodes, executed-"
         f"action noise {manifest['noise']}, expert success {manifest['expert_success_rate']:.2f}); student frames "
         f"{last['student_frames']:,} in {len(history) - 1} DAgger rounds; buffer {last['buffer']:,} samples",
-        f"- training: {cfg.loss} loss on the policy mean, Adam lr {cfg.lr}, batch {cfg.batch_size}, weight decay "
+        f"- training: {cfg.loss} loss on the policy mean"
+        + (f" + {cfg.aux_coef} x the auxiliary loss (the trunk predicts the privileged object state; the "
+           f"logged loss is the sum)" if cfg.aux_coef > 0 else "")
+        + f", Adam lr {cfg.lr}, batch {cfg.batch_size}, weight decay "
         f"{cfg.weight_decay}; {cfg.epochs} BC epochs, {cfg.epochs_per_round} per round",
         f"- wall time {wall_time_s / 60:.1f} min (collection, training, evaluation) on {platform.machine()}, "
         f"{cfg.threads or os.cpu_count()} torch threads for training", "",

@@ -721,8 +721,8 @@ class BucketSolver(Solver):
         return a
 
 
-# Laptop: the state-feedback lid expert (imitable, see FeedbackLidSolver); toilets keep the phased one, on
-# which the feedback law succeeds only 0.59 without noise (1 episode per seen toilet).
+# Laptop: the state-feedback lid expert (imitable, see FeedbackLidSolver); toilets keep the phased one (the
+# feedback law is not tuned for toilets: it failed on several seen toilets in a trial).
 SOLVERS = {"laptop": FeedbackLidSolver, "toilet": LidSolver, "faucet": FaucetSolver, "bucket": BucketSolver}
 
 

@@ -1,6 +1,6 @@
 """One PyBullet world per environment: a ``BulletClient`` in DIRECT mode, bodies addressed by name.
 
-This is the only module that imports ``pybullet``. Everything else talks to a ``BulletSim`` (and to
+This is the only module that imports ``pybullet`` (the object tools take it from here). Everything else talks to a ``BulletSim`` (and to
 the ``Body`` records it returns), never to the global ``pybullet`` module, so two simulations in one
 process cannot interfere (bullet3 #1643, panda-gym #7).
 
@@ -16,8 +16,37 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pybullet
-from pybullet_utils.bullet_client import BulletClient
+
+
+def _import_pybullet_quietly():
+    """``import pybullet`` without its "pybullet build time: ..." line.
+
+    The C module prints that line at import (on stderr in the wheels seen so far; a buffered stdout
+    would carry it to the process's exit, once per forked worker). Here fds 1 and 2 point to
+    /dev/null during the import and C's buffers are flushed before they are restored.
+    """
+    import ctypes
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    try:
+        for fd in saved:
+            os.dup2(devnull, fd)
+        import pybullet as module
+
+        ctypes.CDLL(None).fflush(None)  # anything C buffered goes to /dev/null too
+    finally:
+        for fd, copy in saved.items():
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(devnull)
+    return module
+
+
+pybullet = _import_pybullet_quietly()
+from pybullet_utils.bullet_client import BulletClient  # noqa: E402  (pybullet is imported by now)
 
 # Re-exported constants, so callers never import pybullet themselves.
 POSITION_CONTROL = pybullet.POSITION_CONTROL

@@ -337,3 +337,25 @@ def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys):
     again = bench.main(argv)
     assert "finished before, read back" in capsys.readouterr().out
     assert again["per_seed"][0]["wall_time_s"] == first["per_seed"][0]["wall_time_s"]
+
+
+def test_perception_probe_smoke(tmp_path, monkeypatch):
+    """benchmarks/perception_probe.py in fast mode: the targets are the expert's privileged state of the
+    cloud shown, and every variant reports a finite error per group for both splits."""
+    import importlib.util
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "perception_probe.py"
+    spec = importlib.util.spec_from_file_location("perception_probe", path)
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    out = probe.main(["--variants", "dexart", "labels", "--json", str(tmp_path / "p.json")])
+    assert (tmp_path / "p.json").is_file() and out["train_samples"] > 0
+    for variant in ("dexart", "labels"):
+        for split in ("seen", "unseen"):
+            errors = out["results"][variant][split]
+            assert set(errors) == set(probe.GROUPS) and all(np.isfinite(v) and v >= 0 for v in errors.values())
+    # the targets: the lid's joint angle entry is the env's joint angle (0.2 rad at reset, laptop)
+    data = probe.collect("laptop", "seen", 1, 0.0, 0, 2)
+    assert data["points"].shape[1:] == (608, 3) and data["labels"].shape[1] == 608
+    assert data["privileged"].shape[1] == 20 and abs(float(data["privileged"][0, 9]) - 0.2) < 0.05

@@ -38,3 +38,15 @@ def test_wheel_ships_the_urdf_assets(tmp_path):
     out = subprocess.run([sys.executable, "-c", f"SITE = {str(site)!r}\n" + CHECK], cwd=tmp_path, check=True,
                          capture_output=True, text=True, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"})
     assert out.stdout.strip().startswith("ok")
+
+
+def test_no_pybullet_banner_in_the_output():
+    """PyBullet's C module prints "pybullet build time: ..." at import, into every command's output.
+    dexart_lite imports pybullet in one place (``sim``), quietly."""
+    code = "import dexart_lite.envs, dexart_lite.objects.feasibility\nenv = dexart_lite.envs.make('laptop', num_points=16)\nprint('done')"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
+    assert out.stdout == "done\n", out.stdout
+    assert "build time" not in out.stderr
+    importers = [p.relative_to(REPO).as_posix() for p in (REPO / "dexart_lite").rglob("*.py")
+                 if any(line.startswith(("import pybullet", "from pybullet")) for line in p.read_text().splitlines())]
+    assert importers == ["dexart_lite/sim.py"], importers

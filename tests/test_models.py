@@ -36,6 +36,26 @@ def test_shapes_for_any_leading_dims(size):
         enc(torch.randn(4, 608, 6))
 
 
+def test_extra_point_channels_enter_the_first_layer_and_the_sparse_backward():
+    """in_channels > 3 (xyz + per-point features such as segmentation one-hots): the first layer widens,
+    a cloud of the wrong width is refused, and the winner-only backward still equals the dense one."""
+    torch.manual_seed(2)
+    enc = PointNetEncoder("small", in_channels=7)
+    assert enc.mlp[0].in_features == 7 and "in_channels=7" in repr(enc)
+    with pytest.raises(ValueError, match=r"\(\.\.\., N, 7\)"):
+        enc(torch.randn(2, 608, 3))
+    points = torch.randn(40, 64, 7, requires_grad=True)
+    weight = torch.randn(40, 256)
+    dense = enc.mlp(points).max(dim=-2).values
+    grads_dense = torch.autograd.grad((dense * weight).sum(), [points, *enc.parameters()])
+    grads_fast = torch.autograd.grad((enc(points) * weight).sum(), [points, *enc.parameters()])
+    assert all(((a - b).norm() / b.norm()).item() < 1e-4 for a, b in zip(grads_fast, grads_dense))
+    # the extra channels matter: flipping a one-hot changes the feature
+    flipped = points.detach().clone()
+    flipped[:, :, 3:] = flipped[:, :, 3:].flip(-1)
+    assert not torch.allclose(enc(points.detach()), enc(flipped), rtol=1e-3, atol=0)
+
+
 def test_unknown_size_is_a_one_line_error():
     with pytest.raises(ValueError, match="valid choices: small, medium, large"):
         PointNetEncoder("huge")

@@ -38,12 +38,12 @@ CHUNK = 32  # clouds per per-point pass: (32, 608, 256) float32 activations (19 
 class PointNetEncoder(nn.Module):
     """Per-point MLP + max-pool: ``points (..., N, 3) -> feature (..., 256)``."""
 
-    def __init__(self, size: str = "small"):
+    def __init__(self, size: str = "small", in_channels: int = 3):
         super().__init__()
         check_choice("encoder size", size, ENCODER_SIZES)
-        self.size = size
+        self.size, self.in_channels = size, in_channels  # in_channels > 3: xyz plus per-point features
         layers: list[nn.Module] = []
-        width = 3
+        width = in_channels
         for i, out in enumerate(ENCODER_SIZES[size]):
             if i > 0:
                 layers.append(nn.GELU())
@@ -71,27 +71,28 @@ class PointNetEncoder(nn.Module):
         recomputation of those <= feature_dim points per cloud (measured in
         benchmarks/bench_training.py; the PPO update is the CPU bottleneck).
         """
-        if points.shape[-1] != 3 or points.dim() < 2:
-            raise ValueError(f"points must have shape (..., N, 3), got {tuple(points.shape)}")
+        c = self.in_channels
+        if points.shape[-1] != c or points.dim() < 2:
+            raise ValueError(f"points must have shape (..., N, {c}), got {tuple(points.shape)}")
         lead, n = points.shape[:-2], points.shape[-2]
-        flat = points.reshape(-1, n, 3)  # (B, N, 3)
+        flat = points.reshape(-1, n, c)  # (B, N, C)
         if not (torch.is_grad_enabled() and (points.requires_grad or any(p.requires_grad for p in self.parameters()))):
-            pooled = torch.cat([self.mlp(chunk).max(dim=-2).values for chunk in flat.split(CHUNK)])  # (B, C)
+            pooled = torch.cat([self.mlp(chunk).max(dim=-2).values for chunk in flat.split(CHUNK)])  # (B, F)
             return pooled.reshape(*lead, self.feature_dim)
         with torch.no_grad():
-            winner = torch.cat([self.mlp(chunk).max(dim=-2).indices for chunk in flat.split(CHUNK)])  # (B, C)
-        winners = torch.gather(flat, 1, winner.unsqueeze(-1).expand(-1, -1, 3))  # (B, C, 3): channel c's point
-        hidden = self.mlp[:-1](winners)  # (B, C, H): the layers before the last one, per winning point
+            winner = torch.cat([self.mlp(chunk).max(dim=-2).indices for chunk in flat.split(CHUNK)])  # (B, F)
+        winners = torch.gather(flat, 1, winner.unsqueeze(-1).expand(-1, -1, c))  # (B, F, C): channel f's point
+        hidden = self.mlp[:-1](winners)  # (B, F, H): the layers before the last one, per winning point
         last = self.mlp[-1]
-        feature = (hidden * last.weight).sum(-1) + last.bias  # (B, C): channel c of the last layer only
+        feature = (hidden * last.weight).sum(-1) + last.bias  # (B, F): channel f of the last layer only
         return feature.reshape(*lead, self.feature_dim)
 
     def per_point(self, points: torch.Tensor) -> torch.Tensor:
-        """points: (..., N, 3) -> per-point features (..., N, feature_dim) before pooling."""
+        """points: (..., N, in_channels) -> per-point features (..., N, feature_dim) before pooling."""
         return self.mlp(points)
 
     def extra_repr(self) -> str:
-        return f"size={self.size!r}"
+        return f"size={self.size!r}" + (f", in_channels={self.in_channels}" if self.in_channels != 3 else "")
 
 
 def save_encoder(encoder: PointNetEncoder, path: str | os.PathLike) -> Path:

@@ -24,8 +24,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pybullet
-from pybullet_utils.bullet_client import BulletClient
+
+from dexart_lite.sim import BulletClient, pybullet
 
 DT = 1.0 / 240.0  # s
 FAUCET_SUCCESS = 1.5  # rad, |q| beyond this counts (DexArt)

@@ -9,11 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pybullet
 from matplotlib.figure import Figure  # the object API needs no display backend (unlike pyplot)
-from pybullet_utils.bullet_client import BulletClient
 
 from dexart_lite.objects import ObjectInfo
+from dexart_lite.sim import BulletClient, pybullet
 
 VIEW_DIRECTION = np.array([-0.75, 0.85, 0.65])  # from the object toward the camera (unnormalised)
 CAMERA_DISTANCE = {"faucet": 0.55, "bucket": 0.8, "laptop": 0.75, "toilet": 1.35}  # m, same per category

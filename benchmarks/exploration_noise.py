@@ -2,7 +2,7 @@
 
 PPO starts with a Gaussian policy of standard deviation 1 on all 22 action dimensions (DexArt: initial
 ``log_std`` 0) and, with no entropy bonus, shrinks it only through the policy gradient; the 1M-frame
-Laptop run ended at std 0.97. This script runs the scripted solver (``dexart_lite.scripted``, which
+Laptop run ended at std 0.97. This script runs the scripted solver (``dexart_lite.experts``, which
 uses the privileged object state) with the same kind of noise, Gaussian of std ``sigma`` added to each
 action before the env's clip, and reports success, the stage reached, the fraction of steps per stage
 and the return for each ``sigma``. If even the scripted solver fails at ``sigma`` = 1, PPO's exploration
@@ -21,7 +21,8 @@ import time
 from pathlib import Path
 
 from dexart_lite.objects import list_objects
-from dexart_lite.scripted import SOLVERS, solve
+from dexart_lite.experts import SOLVERS
+from dexart_lite.experts.solve import solve
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 SIGMAS = (0.0, 0.1, 0.3, 0.5, 1.0)

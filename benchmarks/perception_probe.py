@@ -7,7 +7,7 @@ state does (``benchmarks/state_student.py``). This probe measures the perception
 scripted expert (with executed-action noise ``--noise``, so the hand is where a student's would be)
 runs on the seen objects (training data) and, with other seeds, on seen and unseen objects (test
 data); a PointNet with a small MLP head is fitted to the expert's privileged view of the object
-(``scripted.Solver.privileged``: part position and orientation, joint angle and target, extent, grasp
+(``experts.Solver.privileged``: part position and orientation, joint angle and target, extent, grasp
 point; targets standardised) from the observation's cloud of 512 observed + 96 imagined points, and
 the test error is reported in physical units (cm, rad) next to the spread of each quantity.
 
@@ -37,7 +37,7 @@ from dexart_lite.imitation.demos import episode_list
 from dexart_lite.models.pointnet import PointNetEncoder
 from dexart_lite.pointcloud import LABELS
 from dexart_lite.rollout import noisy, run_episodes
-from dexart_lite.scripted import ScriptedPolicy
+from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 VARIANTS = ("dexart", "scaled", "labels", "scaled-medium", "labels-medium")

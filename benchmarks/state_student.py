@@ -5,7 +5,7 @@
 The same DAgger loop as ``dexart-lite distill`` (noisy expert demonstrations, then rounds in which the
 student drives with probability 1 - beta and the expert labels every visited state), but the student
 is a plain MLP on the env's state vector plus the expert's privileged view of the object
-(``scripted.Solver.privileged``: part pose, joint angle and target, extent, grasp point), standardised
+(``experts.Solver.privileged``: part pose, joint angle and target, extent, grasp point), standardised
 with the statistics of the data. No point cloud is involved (the env still renders one; it is
 ignored). If this student succeeds where the point-cloud student fails, the expert is imitable and the
 bottleneck is perception: reading the lid's pose and shape precisely from 608 points.
@@ -27,7 +27,7 @@ import dexart_lite
 from dexart_lite.envs import make
 from dexart_lite.imitation.demos import episode_list
 from dexart_lite.rollout import noisy, per_object_summary, run_episodes
-from dexart_lite.scripted import ScriptedPolicy
+from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 

@@ -21,7 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("dexart_lite.demo", "run the main job on defaults (what `make demo` runs)"),
     "objects": ("dexart_lite.objects.cli", "list, show, generate and compare the articulated objects"),
     "render": ("dexart_lite.render", "save a GIF of one episode"),
-    "solve": ("dexart_lite.scripted", "run the scripted (privileged-state) solver on a task"),
+    "solve": ("dexart_lite.experts.solve", "run the scripted (privileged-state) solver on a task"),
     "train": ("dexart_lite.rl.ppo", "train a point-cloud PPO policy"),
     "eval": ("dexart_lite.rl.evaluate", "evaluate a checkpoint on seen or unseen objects"),
     "data": ("dexart_lite.pretrain.data", "generate datasets: pretraining clouds (dam, objects) and expert demos"),

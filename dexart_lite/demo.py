@@ -3,7 +3,7 @@
     dexart-lite demo                      # about 8 minutes on 2 CPU cores
     dexart-lite demo --minutes 15         # a longer distillation budget
 
-It distils the scripted laptop expert (``scripted.FeedbackLidSolver``, which reads the simulator)
+It distils the scripted laptop expert (``experts.FeedbackLidSolver``, which reads the simulator)
 into the small-PointNet PPO actor-critic, which sees only the point cloud and the robot's state:
 expert demonstrations with noise on the executed actions, behaviour cloning, then DAgger rounds in
 which the student drives and the expert labels every state it visits, until the time budget is

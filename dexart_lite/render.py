@@ -2,7 +2,7 @@
 
     dexart-lite render --task laptop --policy scripted --out laptop.gif
 
-``--policy`` is ``scripted`` (the privileged solver of ``scripted.py``), ``random``, or the path of
+``--policy`` is ``scripted`` (the privileged expert of ``dexart_lite.experts``), ``random``, or the path of
 a PPO checkpoint (``dexart-lite train`` writes them).
 """
 
@@ -62,7 +62,7 @@ def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = No
 def make_policy(name: str, env, seed: int = 0) -> Policy:
     """``scripted``, ``random`` or a checkpoint path -> a policy for ``env``."""
     if name == "scripted":
-        from dexart_lite.scripted import ScriptedPolicy
+        from dexart_lite.experts import ScriptedPolicy
 
         return ScriptedPolicy(env)
     if name == "random":
@@ -71,7 +71,7 @@ def make_policy(name: str, env, seed: int = 0) -> Policy:
     path = Path(name)
     if not path.exists():
         raise FileNotFoundError(f"--policy must be 'scripted', 'random' or a checkpoint file; {name!r} is neither")
-    from dexart_lite.rl.evaluate import load_policy
+    from dexart_lite.rl.checkpoint import load_policy
 
     return load_policy(path, env)
 

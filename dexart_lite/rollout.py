@@ -24,17 +24,21 @@ OnStep = Callable[[dict, np.ndarray, float, dict, dict, int], None]
 
 
 def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on_step: OnStep | None = None,
-                 progress: bool = False) -> list[dict]:
+                 progress: bool = False, desc: str | None = None,
+                 on_reset: Callable[[dict, dict], None] | None = None) -> list[dict]:
     """Run one episode per ``(seed, object_name)`` pair (``object_name`` None: drawn by the seed).
 
+    ``on_reset(obs, info)`` is called after each reset, ``on_step`` after each step (see ``OnStep``).
     Returns one dict per episode: object, seed, success (at any step), max_stage (highest stage,
     1..3, including the reset state), return, steps, stages (the stage after each step).
     """
     results = []
-    for seed, name in tqdm(episodes, unit="episode", disable=not progress, dynamic_ncols=True):
+    for seed, name in tqdm(episodes, desc=desc, unit="episode", disable=not progress, dynamic_ncols=True):
         obs, info = env.reset(seed=int(seed), options={"object": name} if name else None)
         if hasattr(policy, "reset"):
             policy.reset()
+        if on_reset is not None:
+            on_reset(obs, info)
         success, max_stage, total, stages = bool(info["success"]), int(info["stage"]), 0.0, []
         done, t = False, 0
         while not done:
@@ -71,10 +75,11 @@ class Noisy:
             self.policy.reset()
 
     def __call__(self, obs: dict) -> np.ndarray:
-        self.label = np.asarray(self.policy(obs), dtype=np.float32)
+        # float64, as the env computes: the executed action is the expert's exactly when sigma is 0
+        self.label = np.asarray(self.policy(obs), dtype=np.float64)
         self.privileged = getattr(self.policy, "privileged", None)  # an expert's view of the state, if any
         noise = self.rng.standard_normal(self.label.shape) if self.sigma > 0 else 0.0
-        return np.clip(self.label + self.sigma * noise, -1.0, 1.0).astype(np.float32)
+        return np.clip(self.label + self.sigma * noise, -1.0, 1.0)
 
 
 def noisy(policy: Policy, sigma: float, rng: np.random.Generator) -> Noisy:

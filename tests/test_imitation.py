@@ -17,7 +17,7 @@ from tensordict import TensorDict
 
 from dexart_lite import cli
 from dexart_lite import objects as objects_lib
-from dexart_lite import scripted
+from dexart_lite import experts
 from dexart_lite.envs import make
 from dexart_lite.imitation import demos as demos_lib
 from dexart_lite.imitation.demos import collect_demos, load_demos
@@ -103,7 +103,7 @@ def test_demos_round_trip_replays_and_labels_are_the_clean_expert_actions(demos_
     # Replay: a fresh env and a fresh expert, the stored executed actions -> the same observations, and
     # the expert, called on each of them, returns exactly the stored label.
     env = make("laptop", **TINY_ENV)
-    expert = scripted.ScriptedPolicy(env)
+    expert = experts.ScriptedPolicy(env)
     for k, episode in enumerate(manifest["episodes"]):
         obs, _ = env.reset(seed=episode["seed"], options={"object": episode["object"]})
         for t in range(episode["steps"]):
@@ -127,7 +127,7 @@ def test_same_seed_same_bytes_other_seed_other_bytes(demos_dir, tmp_path):
 
 
 def test_labels_are_the_expert_outputs_with_or_without_noise(tmp_path, monkeypatch):
-    monkeypatch.setattr(scripted, "ScriptedPolicy", FakeExpert)
+    monkeypatch.setattr(experts, "ScriptedPolicy", FakeExpert)
     for noise in (0.0, 0.5):
         collect_demos(seed=0, out=tmp_path / str(noise), **{**TINY_DEMOS, "noise": noise})
         data = load_demos(tmp_path / str(noise))

@@ -7,7 +7,8 @@ Seeded and short: a few objects per task, one episode each (the full tables come
 import pytest
 
 from dexart_lite.envs import make
-from dexart_lite.scripted import ScriptedPolicy, solve
+from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.experts.solve import solve
 
 
 def run_episode(task: str, name: str, seed: int) -> tuple[bool, list[int]]:
@@ -109,7 +110,7 @@ def test_pursue_on_an_l_shaped_path():
     the end it stops at the end."""
     import numpy as np
 
-    from dexart_lite.scripted import pursue
+    from dexart_lite.experts.geometry import pursue
 
     path = [np.zeros(3), np.array([1.0, 0, 0]), np.array([1.0, 1, 0])]
     goal, segment = pursue(path, np.array([0.2, -0.5, 0.0]), 0.3)
@@ -128,7 +129,7 @@ def test_laptop_expert_is_memoryless():
     that drove it, in every region of its law (approach, lift, wrap, ride)."""
     import numpy as np
 
-    from dexart_lite.scripted import FeedbackLidSolver
+    from dexart_lite.experts import FeedbackLidSolver
 
     env = make("laptop", object_names=["laptop_11cbb00f39"], num_points=32)
     try:

@@ -2,7 +2,7 @@
 
     dexart-lite data demos --task laptop --split seen --episodes-per-object 4 --noise 0.2 --seed 0 --out data/demos
 
-The expert (``scripted.ScriptedPolicy``, which reads the simulator's privileged state) is queried on
+The expert (``experts.ScriptedPolicy``, which reads the simulator's privileged state) is queried on
 every step. Gaussian noise of std ``noise`` is added to the action it returns and the result,
 clipped to [-1, 1], is what the env executes; the clean expert action is the label. The noise takes
 the hand off the expert's own path, so the labels also cover states near it (DART-style noise
@@ -24,13 +24,13 @@ One sample per env step (``S`` samples, ``N`` = observed + 96 imagined points, `
     imagined_mask  (S, N) int8         1 for imagined hand points
     observation    (S, D) float32      the env's "state" vector (torchrl's name for it, as in PPO batches)
     expert_action  (S, 22) float32     the label: the clean expert action on that observation
-    action         (S, 22) float32     the action executed (label + noise, clipped)
+    action         (S, 22) float64     the action executed (label + noise, clipped), exactly as the env ran it
     stage          (S,) int64          the stage after the step (1 reach, 2 contact, 3 manipulate)
     success        (S,) bool           success after the step
     object         (S,) int64          index into the manifest's ``objects``
     episode        (S,) int64          episode index (order of collection)
     t              (S,) int64          step within the episode (0: the reset observation)
-    privileged     (S, 20) float32     the expert's view of the object (``scripted.Solver.privileged``:
+    privileged     (S, 20) float32     the expert's view of the object (``experts.Solver.privileged``:
                                        part pose, joint angle and target, extent, grasp point); zeros
                                        for an expert without one. Distillation's auxiliary target.
 """
@@ -54,21 +54,21 @@ from dexart_lite.rollout import noisy, per_object_summary, run_episodes
 from dexart_lite.utils import check_choice
 
 FORMAT = "dexart_lite.demos"
-FORMAT_VERSION = 2  # 2: + privileged
+FORMAT_VERSION = 3  # 2: + privileged; 3: action stored as float64
 MANIFEST = "manifest.json"
 SAMPLES = "samples"  # the TensorDict.memmap folder inside OUT
 SPLITS = ("seen", "seen_half", "unseen")
 MANIFEST_KEYS = ("task", "split", "objects", "num_points", "cloud_points", "state_dim", "samples", "episodes",
                  "expert_success_rate", "expert_mean_max_stage", "noise", "seed")
 ACTION_DIM = 22
-PRIVILEGED_DIM = 20  # scripted.PRIVILEGED_DIM (not imported: scripted pulls in trimesh and yourdfpy)
+PRIVILEGED_DIM = 20  # experts.PRIVILEGED_DIM (not imported: the experts pull in trimesh and yourdfpy)
 # key -> (shape after the sample dimension, with N / D for the cloud and state sizes; dtype)
 SAMPLE_SPECS = {
     "point_cloud": (("N", 3), torch.float32),
     "imagined_mask": (("N",), torch.int8),
     "observation": (("D",), torch.float32),
     "expert_action": ((ACTION_DIM,), torch.float32),
-    "action": ((ACTION_DIM,), torch.float32),
+    "action": ((ACTION_DIM,), torch.float64),  # float64: exactly what the env ran, so a replay is exact
     "stage": ((), torch.int64),
     "success": ((), torch.bool),
     "object": ((), torch.int64),
@@ -96,7 +96,7 @@ class Recorder:
             self.episode += 1
         self.rows.append((np.array(obs["point_cloud"], np.float32), np.array(obs["imagined_mask"], np.int8),
                           np.array(obs["state"], np.float32), np.array(self.labelled.label, np.float32),
-                          np.clip(np.asarray(action, np.float32), -1.0, 1.0), int(info["stage"]),
+                          np.clip(np.asarray(action, np.float64), -1.0, 1.0), int(info["stage"]),
                           bool(info["success"]), self.object_index[info["object_name"]], self.episode, t,
                           np.zeros(PRIVILEGED_DIM, np.float32) if getattr(self.labelled, "privileged", None) is None
                           else np.asarray(self.labelled.privileged, np.float32)))
@@ -132,7 +132,7 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
     """Run the noisy expert on every object of ``split`` and write ``out`` (see the module docstring);
     returns the manifest."""
     from dexart_lite.envs import make
-    from dexart_lite.scripted import ScriptedPolicy
+    from dexart_lite.experts import ScriptedPolicy
 
     check_choice("task", task, TASKS)
     check_choice("split", split, SPLITS)

@@ -46,9 +46,9 @@ from dexart_lite.imitation.report import plot_rounds, write_report
 from dexart_lite.models.actor_critic import HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES, save_encoder
 from dexart_lite.registration import TASKS
-from dexart_lite.rl.checkpoint import save_checkpoint
+from dexart_lite.rl.checkpoint import policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
-from dexart_lite.rl.evaluate import evaluate, policy_function, record_gif
+from dexart_lite.rl.evaluate import evaluate, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes
 from dexart_lite.utils import check_choice, write_json
 
@@ -230,7 +230,7 @@ def distill(cfg: DistillConfig) -> dict:
     logging.getLogger("torchrl").setLevel(logging.WARNING)  # its INFO line on every new storage breaks the bar
 
     from dexart_lite.envs import make
-    from dexart_lite.scripted import ScriptedPolicy
+    from dexart_lite.experts import ScriptedPolicy
 
     validate(cfg)
     start = time.perf_counter()

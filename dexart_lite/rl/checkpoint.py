@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Callable
 
+import numpy as np
 import torch
+from tensordict import TensorDict
+from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
-from dexart_lite.models.actor_critic import make_actor_critic
+from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY, make_actor_critic
 
 FILE_FORMAT = "dexart_lite.ppo"
 FILE_VERSION = 1
@@ -60,3 +64,26 @@ def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "check
         detail = " ".join(str(err).split())
         raise ValueError(f"{path}: weights do not fit a {cfg['encoder']!r} actor-critic ({detail[:300]})") from None
     return actor_critic
+
+
+def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.ndarray]:
+    """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1]."""
+    policy = actor_critic.get_policy_operator()
+
+    def act(obs: dict) -> np.ndarray:
+        td = TensorDict({POINTS_KEY: torch.as_tensor(obs["point_cloud"]), STATE_KEY: torch.as_tensor(obs["state"])}, [])
+        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+            return policy(td)["action"].clamp(-1.0, 1.0).numpy()
+
+    return act
+
+
+def load_policy(path: str | Path, env=None) -> Callable[[dict], np.ndarray]:
+    """The deterministic policy of a checkpoint, for a gymnasium env (used by ``dexart-lite render``)."""
+    payload = load_checkpoint(path)
+    if env is not None:
+        state_dim = env.observation_space["state"].shape[0]
+        if state_dim != payload["dims"]["state_dim"]:
+            raise ValueError(f"{path} was trained on {payload['config']['task']} (state of "
+                             f"{payload['dims']['state_dim']}); this env's state has {state_dim} entries")
+    return policy_function(actor_critic_from_checkpoint(payload, path))

@@ -16,18 +16,16 @@ import argparse
 import json
 import time
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
-from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY
+from dexart_lite import render
 from dexart_lite.registration import HORIZON, TASKS
-from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, policy_function
 from dexart_lite.rl.env import make_env, torch_threads
 from dexart_lite.utils import check_choice
 
@@ -81,33 +79,9 @@ def markdown_table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.ndarray]:
-    """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1]."""
-    policy = actor_critic.get_policy_operator()
-
-    def act(obs: dict) -> np.ndarray:
-        td = TensorDict({POINTS_KEY: torch.as_tensor(obs["point_cloud"]), STATE_KEY: torch.as_tensor(obs["state"])}, [])
-        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
-            return policy(td)["action"].clamp(-1.0, 1.0).numpy()
-
-    return act
-
-
-def load_policy(path: str | Path, env=None) -> Callable[[dict], np.ndarray]:
-    """The deterministic policy of a checkpoint, for a gymnasium env (used by ``dexart-lite render``)."""
-    payload = load_checkpoint(path)
-    if env is not None:
-        state_dim = env.observation_space["state"].shape[0]
-        if state_dim != payload["dims"]["state_dim"]:
-            raise ValueError(f"{path} was trained on {payload['config']['task']} (state of "
-                             f"{payload['dims']['state_dim']}); this env's state has {state_dim} entries")
-    return policy_function(actor_critic_from_checkpoint(payload, path))
-
-
 def record_gif(actor_critic: ActorValueOperator, task: str, path: str | Path, split: str = "seen",
                object_name: str | None = None, seed: int = 100, env_kwargs: dict | None = None) -> dict:
     """Render one deterministic evaluation episode to a GIF; returns its summary."""
-    from dexart_lite import render
     from dexart_lite.envs import make as make_gym_env
 
     env = make_gym_env(task, split=split, render_mode="rgb_array", point_noise=True, camera_noise=True,

@@ -1,0 +1,138 @@
+"""The bucket expert."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dexart_lite.experts.base import Solver
+from dexart_lite.experts.controller import hand_shape
+from dexart_lite.experts.geometry import TUCKED_THUMB, Pose, finger_tip, hand_frame, thumb_reaching
+
+
+class BucketSolver(Solver):
+    """Bucket: lift the lying bail on hooked fingertips, close a fist round it, lift the bucket.
+
+    Bail frame (``PartFrame``): the pivot line is +y, q = 0 upright, q = -pi/2 lying toward the
+    robot (the apex toward -x); the grasp point is the apex (centre of the grip tube) at q = 0.
+    Hand: palm facing +x (toward the bucket) on the robot side of the bail, fingers hanging down,
+    spread along the tube. Coordinates "in the palm frame" below: x_h forward (palmar, +x world),
+    z_h down the fingers (-z world).
+
+    The lying bail hugs the wall (0.6-1.8 cm of air between tube and wall, less than a finger is
+    thick), so no finger can get round it; and the bail weighs 3-15 g and swings freely, so any
+    quick touch flicks it over. Hence, with rate-limited finger targets throughout:
+
+    1. approach, lower: the straight fingers come down beside the tube (robot side), tips below it.
+    2. hook: the distal phalanges bend toward +x until the fingertips sit under the tube's outer
+       half (a J; the tip stays clear of the wall).
+    3. raise: the hand follows the apex up its circle (orientation fixed), slowing down, to ``q_mid``
+       (the bail leaning back onto the fingers, short of upright, where it would topple over). By
+       then the tube is above the rim, and the fingers hang inside it.
+    4. slide: straight fingers, the hand slides down along the tube until the tube is just above
+       the knuckle line.
+    5. fist: the proximal phalanges swing up under the tube (MCP 90 degrees: a shelf), then the
+       medial ones up beyond it (PIP 90 degrees: a wall), and the thumb comes down on top: the tube
+       is boxed in by palm, shelf, wall and thumb.
+    6. lift: straight up ``LIFT``; the bucket hangs from the fist with the bail upright.
+    """
+
+    RATE = 0.08  # rad per control step: largest change of a hand joint target
+    GAP = 0.003  # m: finger's palmar face to the tube while hooking and sliding
+    DELTA = -0.002  # m: fingertip centre this far (x) from the tube centre (toward the robot)
+    PUSH = 0.003  # m: hooked tips aimed this far up into the tube
+    LEAD = 0.4  # rad: while raising, follow the apex turned this much further
+    SPEED = 0.5  # of the palm controller's speed caps while raising
+    SLIDE_RATE = 0.008  # m per control step
+    FIST_Z = -0.008  # m: tube centre this far above the knuckle line (z_h) for the fist
+    FIST = (1.57, 1.57, 0.6)  # MCP, PIP, DIP
+    THUMB_Y = 0.015  # m: thumb tip beside the middle finger
+    THUMB_SQUEEZE = 0.004  # m: thumb tip aimed this far into the tube's top
+    LIFT = 0.36  # m: above the fist position (success needs 0.25 m of body lift)
+    LIFT_RATE = 0.007  # m per control step
+
+    def __init__(self, env):
+        super().__init__(env)
+        p = env.objects.active.params
+        self.apex_local = np.asarray(env.objects.active.grasp_point, float)
+        rho = p["tube_r"]
+        self.R = hand_frame(normal=(1, 0, 0), fingers=(0, 0, -1))
+        self.c = rho + 0.0098 + self.GAP  # x_h of the tube centre: just in front of the fingers
+        # Hook: bend only the DIP, so that the tip centre lands DELTA from the tube centre.
+        bends = np.linspace(0.0, 1.6, 161)
+        tips = np.array([finger_tip(0.0, 0.0, b) for b in bends])
+        k = int(np.argmin(np.abs(tips[:, 0] - (self.c + self.DELTA))))
+        self.dip = bends[k]
+        rise = np.sqrt((0.012 + rho) ** 2 - self.DELTA ** 2)  # tube centre above the tip centre
+        self.hook_z = tips[k][1] - rise + self.PUSH  # z_h of the tube centre while hooked
+        # Stop raising where the fingers hanging from the tube still clear the rim: the outer corners
+        # of index and ring (5.75 cm either side of the middle finger) inside the rim's inner edge.
+        r_in = p["radius"] * p["taper"] - 0.003  # A/B: round rim; C (square) has more room
+        x_clear = np.sqrt(max((r_in - 0.003) ** 2 - 0.0575 ** 2, 0.0))
+        bail_r = float(np.linalg.norm(self.apex_local))
+        self.q_mid = -float(np.clip(np.arcsin(np.clip((x_clear - self.c - 0.0098) / bail_r, -1, 1)), 0.15, 0.35))
+        self.thumb = thumb_reaching((self.c, self.THUMB_Y, self.FIST_Z - rho - 0.012 + self.THUMB_SQUEEZE))
+        self.hand_now: np.ndarray | None = None
+
+    def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
+        """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
+        hand = np.asarray(hand, float)
+        self.hand_now = hand.copy() if self.hand_now is None else self.hand_now + np.clip(
+            hand - self.hand_now, -self.RATE, self.RATE)
+        return super().action(state, target, self.hand_now, speed)
+
+    def apex(self, q: float | None = None) -> np.ndarray:
+        """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
+        return self.frame.pose(q).apply(self.apex_local)
+
+    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0) -> Pose:
+        """Palm pose with the tube centre ``tube`` (world) at (x_h, 0, z_h) in the palm frame."""
+        return Pose(np.asarray(tube) - self.R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), self.R)
+
+    def shape(self, finger=(0.0, 0.0, 0.0), thumb=TUCKED_THUMB) -> np.ndarray:
+        return hand_shape(finger=(0.0, *finger), thumb=thumb)
+
+    def step(self, s) -> np.ndarray:
+        tube = self.apex()
+        if self.phase == "approach":  # above and behind the hook position
+            target = self.palm_at(tube, self.c, self.hook_z, up=0.06)
+            a, err, err_r = self.action(s, Pose(target.p - np.array([0.02, 0.0, 0.0]), self.R), self.shape())
+            if (err < 0.02 and err_r < 0.1) or self.phase_steps > 80:
+                self.goto("lower")
+            return a
+        if self.phase == "lower":  # straight fingers down beside the tube
+            a, err, err_r = self.action(s, self.palm_at(tube, self.c, self.hook_z), self.shape())
+            if (err < 0.005 and err_r < 0.05) or self.phase_steps > 40:
+                self.goto("hook")
+            return a
+        hook = self.shape((0.0, 0.0, self.dip))
+        if self.phase == "hook":  # fingertips under the tube
+            a, _, _ = self.action(s, self.palm_at(tube, self.c, self.hook_z), hook)
+            if self.phase_steps > 8:
+                self.goto("raise")
+            return a
+        if self.phase == "raise":  # carry the apex up its circle to q_mid, slowing down
+            slow = float(np.clip((self.q_mid - s.q) / 0.6, 0.2, 1.0))
+            goal = self.palm_at(self.apex(min(s.q + self.LEAD, self.q_mid)), self.c, self.hook_z)
+            a, err, _ = self.action(s, goal, hook, speed=self.SPEED * slow)
+            if s.q > self.q_mid - 0.1 and err < 0.01:
+                self.goto("slide")
+                self.tube_ref, self.z_h = self.apex(self.q_mid), self.hook_z
+            return a
+        if self.phase == "slide":  # down along the tube until it is by the knuckles
+            self.z_h = max(self.z_h - self.SLIDE_RATE, self.FIST_Z)
+            a, err, _ = self.action(s, self.palm_at(self.tube_ref, self.c, self.z_h), self.shape(), speed=0.5)
+            if self.z_h <= self.FIST_Z and err < 0.005:
+                self.goto("fist")
+            return a
+        fist = self.shape(self.FIST, self.thumb)
+        if self.phase == "fist":  # shelf, then wall, then thumb on top
+            shape = fist
+            if self.phase_steps < 12:
+                shape = self.shape((self.FIST[0], 0.0, 0.0) if self.phase_steps < 8 else self.FIST)
+            a, _, _ = self.action(s, self.palm_at(self.tube_ref, self.c, self.FIST_Z), shape, speed=0.5)
+            if self.phase_steps > 22:
+                self.goto("lift")
+            return a
+        up = min(self.phase_steps * self.LIFT_RATE, self.LIFT)
+        a, _, _ = self.action(s, self.palm_at(self.tube_ref, self.c, self.FIST_Z, up=up), fist, speed=0.5)
+        return a

@@ -1,0 +1,98 @@
+"""The laptop expert: the lid grasp of ``LidSolver`` as a memoryless state-feedback law."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dexart_lite.experts.geometry import Pose, pursue
+from dexart_lite.experts.lid import LidSolver
+
+
+class FeedbackLidSolver(LidSolver):
+    """``LidSolver``'s grasp as a state-feedback law: the action is a function of the current robot and
+    lid state only (no phase, no step counter), so that a student can copy it from observations and
+    DAgger's labels agree with each other wherever the student takes the hand.
+
+    The phases of ``LidSolver`` become regions of the state:
+
+    * lid below ``wrap_q`` (the lift; ``wrap_q`` is 0.05 rad short of ``LidSolver.wrap_at``): the palm follows a fixed path start -> above beside the lid ->
+      down beside it -> thumb under the middle of the free edge (pure pursuit, ``pursue``); once the
+      thumb is there (the palm within ``NEAR`` of the thumb pose on the arc of the lid turned 0 to
+      ``LEAD`` further), the target is the thumb pose of the lid turned further: the lid turns up on it.
+    * lid at ``wrap_q`` or more (the wrap): the palm follows clear (thumb straight down off the inner
+      face, hand and thumb still in their lifting pose) -> over the edge, off the inner face -> palm on
+      the inner face; the fingers curl once the palm
+      is within ``CLOSE_AT`` of the inner-face pose; with the fingers curled (read from the hand's
+      joint angles) and the palm within ``HOLD`` of the grasp, the hand rides the lid to its target.
+      A grasp lost on the way opens the fingers and the path starts again from where the hand is.
+
+    ``region`` names the rule that chose the last action ("approach", "lift", "wrap", "close" or
+    "ride"), for plots and tests; it is an output, never an input.
+    """
+
+    LOOKAHEAD = 0.04  # m
+    NEAR = 0.02  # m: the thumb counts as under the edge
+    CLOSE_AT = 0.012  # m: palm this near the inner-face pose: curl the fingers
+    HOLD = 0.03  # m: palm this near the grasp pose with curled fingers: ride
+    # How far the fingers are curled, 0 (``wrap_open``) to 1 (``wrap_shape``), read from the joint angles
+    # (fingers stopped by the lid reach 0.85-0.99 of the commanded curl): past CURLING the hand goes on
+    # closing, past CURLED it rides.
+    CURLING, CURLED = 0.2, 0.5
+    FIXED_SIDE = {"laptop": 1.0}  # lid frame +y; toilets keep ``LidSolver``'s choice
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.start = env.robot.init_palm_pos  # the reset pose: the same for every episode
+        # Always come in along the same side of the lid: ``LidSolver`` picks the side nearer the robot's
+        # centre line, which flips across the middle of DexArt's position randomisation (laptops at
+        # y = -0.05 + U[0, 0.1) m): a student regressing on both would average them and go neither way.
+        self.side = self.FIXED_SIDE.get(env.CATEGORY, self.side)
+        self.region = "approach"
+        self.wrap_q = self.wrap_at - 0.05  # lid angle (rad) from which the wrap takes over
+        self._flex = np.r_[1:4, 5:8, 9:12]  # MCP, PIP, DIP of index, middle, ring among the 16 hand joints
+        self._open, self._curl = (float(np.mean(shape[self._flex])) for shape in (self.wrap_open, self.wrap_shape))
+
+    def curl(self, s) -> float:
+        """The fingers' curl, 0 open to 1 closed (mean flexion of index, middle and ring)."""
+        return (float(np.mean(s.robot.qpos[6:][self._flex])) - self._open) / (self._curl - self._open)
+
+    def step(self, s) -> np.ndarray:
+        q, target = s.q, s.obj.joint_target
+        lid = self.frame.pose()
+        palm = s.robot.palm_pos
+        if q < self.wrap_q:
+            arc = [self.thumb_pose(self.frame.pose(q + d)).p for d in np.linspace(0.0, self.LEAD, 5)]
+            if min(np.linalg.norm(p - palm) for p in arc) < self.NEAR:  # lift: the lid turns up on the thumb
+                self.region = "lift"
+                q_goal = q + np.clip(self.wrap_at + 0.05 - q, 0.03, self.LEAD)
+                a, _, _ = self.action(s, self.thumb_pose(self.frame.pose(q_goal)), self.lift_shape)
+                return a
+            self.region = "approach"
+            beside = self.thumb_pose(lid, side=self.side * (0.5 * self.width + 0.075))
+            top = max(lid.apply(c)[2] for c in self.corners)
+            above = beside.p + np.array([0.0, 0.0, max(0.0, top + 0.125 - beside.p[2])])
+            goal, _ = pursue([self.start, above, beside.p, self.thumb_pose(lid).p], palm, self.LOOKAHEAD)
+            a, _, _ = self.action(s, Pose(goal, self.R_lift), self.lift_shape)
+            return a
+        grasp = lid @ self.wrap_pose()
+        err, curl = float(np.linalg.norm(grasp.p - palm)), self.curl(s)
+        if err < self.HOLD and curl > self.CURLED:  # ride the grasp to the target
+            self.region = "ride"
+            q_goal = q + np.clip(1.5 * (target - q), -0.25, 0.25)
+            a, _, _ = self.action(s, self.frame.pose(q_goal) @ self.wrap_pose(), self.wrap_shape, speed=0.5)
+            return a
+        if err < self.CLOSE_AT or (err < self.HOLD and curl > self.CURLING):  # curl the fingers over the edge
+            self.region = "close"
+            a, _, _ = self.action(s, grasp, self.wrap_shape)
+            return a
+        self.region = "wrap"
+        # From the lifting pose straight down off the inner face first (a thumb dragged up past the
+        # edge flings the lid open), then over the edge and onto the inner face, slowly near the lid.
+        path = [self.thumb_pose(lid).p, self.thumb_pose(lid, off=0.05).p, (lid @ self.wrap_pose(out=0.05, up=0.03)).p,
+                (lid @ self.wrap_pose(press=-0.002)).p]
+        goal, segment = pursue(path, palm, self.LOOKAHEAD)
+        # Hand and thumb keep their lifting pose until the thumb is clear: turning the hand or swinging
+        # the thumb aside under the lid would fling it open.
+        rotation, hand = (self.R_lift, self.lift_shape) if segment == 0 else (grasp.R, self.wrap_open)
+        a, _, _ = self.action(s, Pose(goal, rotation), hand, speed=1.0 if err > 0.05 else 0.5)
+        return a

@@ -128,9 +128,9 @@ def package_versions() -> dict[str, str]:
 
 def collect_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int, out: str | Path,
                   num_points: int = 512, max_episode_steps: int | None = None, object_names: list[str] | None = None,
-                  progress: bool = True) -> dict:
+                  progress: bool = True, camera_noise: bool = True) -> dict:
     """Run the noisy expert on every object of ``split`` and write ``out`` (see the module docstring);
-    returns the manifest."""
+    returns the manifest. ``camera_noise``: DexArt's per-reset camera perturbation (on, as in training)."""
     from dexart_lite.envs import make
     from dexart_lite.experts import ScriptedPolicy
 
@@ -150,7 +150,7 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
         check_choice(f"{split} {task} object", name, in_split)
 
     start = time.perf_counter()
-    env = make(task, split=split, object_names=names, num_points=num_points, point_noise=True, camera_noise=True,
+    env = make(task, split=split, object_names=names, num_points=num_points, point_noise=True, camera_noise=camera_noise,
                max_episode_steps=max_episode_steps)
     expert = noisy(ScriptedPolicy(env), noise, np.random.default_rng([seed, 1]))
     recorder = Recorder(expert, names)
@@ -163,7 +163,7 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
     summary = per_object_summary(results)
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "task": task, "split": split, "objects": names,
-        "seed": seed, "noise": noise, "episodes_per_object": episodes_per_object, "num_points": num_points,
+        "seed": seed, "noise": noise, "camera_noise": camera_noise, "episodes_per_object": episodes_per_object, "num_points": num_points,
         "cloud_points": samples["point_cloud"].shape[1], "state_dim": samples["observation"].shape[1],
         "max_episode_steps": max_episode_steps, "samples": samples.batch_size[0],
         "expert_success_rate": summary["success_rate"], "expert_mean_max_stage": summary["mean_max_stage"],

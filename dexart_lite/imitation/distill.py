@@ -43,10 +43,11 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
-from dexart_lite.models.actor_critic import HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic
+from dexart_lite.models.actor_critic import (HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic,
+                                             trunk_of)
 from dexart_lite.models.pointnet import ENCODER_SIZES, save_encoder
 from dexart_lite.registration import TASKS
-from dexart_lite.rl.checkpoint import policy_function, save_checkpoint
+from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes
@@ -84,8 +85,15 @@ class DistillConfig:
                             "predict the expert's privileged object state (a linear head, dropped after training; "
                             "0: off)"})
     init_log_std: float = field(default=0.0, metadata={"help": "initial log std of the student's actions (for PPO)"})
+    head: str = field(default="64,64", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
+    normalize: bool = field(default=False, metadata={"help": "fixed input normalisation in the trunk, set from the "
+                            "demonstrations (DexArt: none)"})
+    arm_weight: float = field(default=1.0, metadata={"help": "loss weight of the 6 arm (twist) dimensions relative "
+                              "to the 16 hand dimensions"})
     max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
+    camera_noise: bool = field(default=True, metadata={"help": "DexArt's per-reset camera perturbation (1.5 cm, "
+                               "0.05 rad std) in collection and evaluation"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250)"})
     seed: int = 0
     eval_episodes: int = field(default=3, metadata={"help": "evaluation episodes per object and split (0: none)"})
@@ -98,10 +106,19 @@ class DistillConfig:
 
     def env_kwargs(self) -> dict:
         """Keyword arguments of the env shared by collection, evaluation and the GIF."""
-        kwargs = {"num_points": self.num_points}
+        kwargs = {"num_points": self.num_points, "point_noise": True, "camera_noise": self.camera_noise}
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
+
+    def head_widths(self) -> list[int]:
+        try:
+            widths = [int(w) for w in self.head.split(",") if w.strip()]
+        except ValueError:
+            widths = []
+        if not widths or min(widths) < 1:
+            raise ValueError(f"head must be comma-separated positive widths such as 64,64; got {self.head!r}")
+        return widths
 
     def object_names(self) -> list[str]:
         in_split = [info.name for info in objects_lib.list_objects(self.task, self.split)]
@@ -138,6 +155,9 @@ def validate(cfg: DistillConfig) -> None:
         raise ValueError(f"eval_episodes and threads must be >= 0, got {cfg.eval_episodes}, {cfg.threads}")
     if cfg.max_minutes is not None and not cfg.max_minutes > 0:
         raise ValueError(f"max_minutes must be > 0, got {cfg.max_minutes}")
+    cfg.head_widths()
+    if not (math.isfinite(cfg.arm_weight) and cfg.arm_weight > 0):
+        raise ValueError(f"arm_weight must be a finite weight > 0, got {cfg.arm_weight}")
     cfg.object_names()
 
 
@@ -162,6 +182,9 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
         mean, std = privileged.mean(0), privileged.std(0).clamp_min(1e-3)  # constant entries: no signal, no blow-up
     generator = torch.Generator().manual_seed(cfg.seed)
     n = data.batch_size[0]
+    weights = torch.ones(data["expert_action"].shape[-1])  # per action dimension, mean 1
+    weights[:6] = cfg.arm_weight
+    weights *= len(weights) / weights.sum()
     losses = []
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(epochs):
@@ -171,7 +194,7 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
                 out = policy(batch.select(POINTS_KEY, STATE_KEY))
                 target = batch["expert_action"]  # (B, 22)
                 if cfg.loss == "mse":
-                    loss = (out["loc"] - target).pow(2).mean()
+                    loss = ((out["loc"] - target).pow(2) * weights).mean()
                 else:  # Gaussian NLL per action, with the state-independent scale
                     loss = -torch.distributions.Normal(out["loc"], out["scale"]).log_prob(target).sum(-1).mean()
                 if use_aux:
@@ -249,15 +272,18 @@ def distill(cfg: DistillConfig) -> dict:
         # ---- 1. demonstrations (the expert drives, with noise)
         if not cfg.demos:
             collect_demos(cfg.task, cfg.split, cfg.demo_episodes_per_object, cfg.demo_noise, cfg.seed, demo_path,
-                          cfg.num_points, cfg.max_episode_steps, names, cfg.progress)
+                          cfg.num_points, cfg.max_episode_steps, names, cfg.progress, cfg.camera_noise)
         manifest = read_manifest(demo_path)
         demos = load_demos(demo_path)
 
-        env = make(cfg.task, split=cfg.split, object_names=names, point_noise=True, camera_noise=True,
-                   **cfg.env_kwargs())
+        env = make(cfg.task, split=cfg.split, object_names=names, **cfg.env_kwargs())
         dims = {"num_points": env.observation_space["point_cloud"].shape[0],
-                "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0]}
-        actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std)
+                "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0],
+                "head": cfg.head_widths(), "normalize": cfg.normalize}
+        actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std,
+                                         **architecture(dims))
+        if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
+            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY])
         # the auxiliary head (trunk features -> privileged object state) lives only during distillation
         aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
         buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))

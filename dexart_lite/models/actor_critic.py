@@ -38,17 +38,43 @@ HEAD_HIDDEN = (64, 64)
 
 
 class Trunk(nn.Module):
-    """PointNet on the cloud, concatenated with an MLP on the state vector."""
+    """PointNet on the cloud, concatenated with an MLP on the state vector.
 
-    def __init__(self, state_dim: int, encoder_size: str = "small"):
+    With ``normalize`` (not DexArt's: its inputs are raw), both inputs first go through a fixed affine
+    map, ``(x - loc) / scale``, whose buffers are set once from data (``set_normalization``) and travel
+    in the weights: the state vector per entry, the points with one centre (3,) and one scale, so the
+    cloud keeps its shape.
+    """
+
+    def __init__(self, state_dim: int, encoder_size: str = "small", normalize: bool = False):
         super().__init__()
         self.encoder = PointNetEncoder(encoder_size)
         self.state_mlp = nn.Sequential(nn.Linear(state_dim, STATE_HIDDEN), nn.ReLU(),
                                        nn.Linear(STATE_HIDDEN, STATE_HIDDEN))
         self.out_dim = FEATURE_DIM + STATE_HIDDEN
+        self.normalize = normalize
+        if normalize:
+            self.register_buffer("state_loc", torch.zeros(state_dim))
+            self.register_buffer("state_scale", torch.ones(state_dim))
+            self.register_buffer("point_loc", torch.zeros(3))
+            self.register_buffer("point_scale", torch.ones(1))
+
+    @torch.no_grad()
+    def set_normalization(self, states: torch.Tensor, points: torch.Tensor) -> None:
+        """Centre and scale from samples: ``states`` (S, D), ``points`` (S, N, 3) (m)."""
+        if not self.normalize:
+            raise ValueError("this trunk was built with normalize=False")
+        self.state_loc.copy_(states.mean(0))
+        self.state_scale.copy_(states.std(0).clamp_min(1e-2))  # constant entries (t/T at reset...) stay finite
+        flat = points.reshape(-1, 3)
+        self.point_loc.copy_(flat.mean(0))
+        self.point_scale.copy_(flat.std(0).mean().clamp_min(1e-3).reshape(1))
 
     def forward(self, points: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
         """points (..., N, 3), state (..., D) -> (..., 320)."""
+        if self.normalize:
+            points = (points - self.point_loc) / self.point_scale
+            state = (state - self.state_loc) / self.state_scale
         return torch.cat([self.encoder(points), self.state_mlp(state)], dim=-1)
 
 
@@ -70,16 +96,18 @@ def orthogonal_init(module: nn.Module, gain: float) -> None:
 
 
 def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "small",
-                      init_log_std: float = 0.0) -> ActorValueOperator:
+                      init_log_std: float = 0.0, head: tuple[int, ...] = HEAD_HIDDEN,
+                      normalize: bool = False) -> ActorValueOperator:
     """The shared-trunk actor-critic; the actions' standard deviation starts at ``exp(init_log_std)``
-    (DexArt / SB3: 0, i.e. std 1).
+    (DexArt / SB3: 0, i.e. std 1). ``head``: hidden widths of the policy and value MLPs (DexArt: 64, 64);
+    ``normalize``: fixed input normalisation in the trunk (``Trunk``; DexArt: none).
 
     ``get_policy_operator()`` goes to the collector and the loss's actor; ``get_value_operator()``
     (trunk + value head) to GAE; ``get_value_head()`` to the loss's critic.
     """
-    trunk = Trunk(state_dim, encoder)
-    policy_net = mlp(trunk.out_dim, HEAD_HIDDEN, action_dim)
-    value_net = mlp(trunk.out_dim, HEAD_HIDDEN, 1)
+    trunk = Trunk(state_dim, encoder, normalize)
+    policy_net = mlp(trunk.out_dim, tuple(head), action_dim)
+    value_net = mlp(trunk.out_dim, tuple(head), 1)
     orthogonal_init(trunk, math.sqrt(2))
     orthogonal_init(policy_net[:-1], math.sqrt(2))
     orthogonal_init(value_net[:-1], math.sqrt(2))
@@ -97,6 +125,11 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
                                      default_interaction_type=ExplorationType.RANDOM)  # eval: set DETERMINISTIC
     value_head = ValueOperator(value_net, in_keys=[HIDDEN_KEY])  # writes "state_value" (..., 1)
     return ActorValueOperator(trunk_module, policy_head, value_head)
+
+
+def trunk_of(actor_critic: ActorValueOperator) -> Trunk:
+    """The ``Trunk`` of ``actor_critic``."""
+    return actor_critic.module[0].module  # module[0] is the trunk TensorDictModule
 
 
 def encoder_of(actor_critic: ActorValueOperator) -> PointNetEncoder:

@@ -16,7 +16,7 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
-from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY, make_actor_critic
+from dexart_lite.models.actor_critic import HEAD_HIDDEN, POINTS_KEY, STATE_KEY, make_actor_critic
 
 FILE_FORMAT = "dexart_lite.ppo"
 FILE_VERSION = 1
@@ -54,10 +54,16 @@ def load_checkpoint(path: str | os.PathLike) -> dict:
     return payload
 
 
+def architecture(dims: dict) -> dict:
+    """``make_actor_critic`` keywords recorded in a checkpoint's ``dims`` (absent: DexArt's)."""
+    return {"head": tuple(dims.get("head", HEAD_HIDDEN)), "normalize": bool(dims.get("normalize", False))}
+
+
 def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "checkpoint") -> ActorValueOperator:
     """The actor-critic described by ``payload["dims"]`` with its weights loaded strictly."""
     dims, cfg = payload["dims"], payload["config"]
-    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg["encoder"])
+    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg["encoder"],
+                                     **architecture(dims))
     try:
         actor_critic.load_state_dict(payload["model"], strict=True)
     except RuntimeError as err:

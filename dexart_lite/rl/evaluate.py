@@ -84,8 +84,8 @@ def record_gif(actor_critic: ActorValueOperator, task: str, path: str | Path, sp
     """Render one deterministic evaluation episode to a GIF; returns its summary."""
     from dexart_lite.envs import make as make_gym_env
 
-    env = make_gym_env(task, split=split, render_mode="rgb_array", point_noise=True, camera_noise=True,
-                       **(env_kwargs or {}))
+    env = make_gym_env(task, split=split, render_mode="rgb_array",
+                       **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
     options = {"object": object_name} if object_name else None
     with torch_threads(1):
         frames, summary = render.record_episode(env, policy_function(actor_critic), seed=seed, options=options)

@@ -88,6 +88,8 @@ class DistillConfig:
     head: str = field(default="64,64", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
     normalize: bool = field(default=False, metadata={"help": "fixed input normalisation in the trunk, set from the "
                             "demonstrations (DexArt: none)"})
+    drop_state: str = field(default="", metadata={"help": "state entries the student does not see (needs "
+                            "--normalize): comma-separated from time, palm_velocity"})
     arm_weight: float = field(default=1.0, metadata={"help": "loss weight of the 6 arm (twist) dimensions relative "
                               "to the 16 hand dimensions"})
     max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
@@ -110,6 +112,17 @@ class DistillConfig:
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
+
+    def dropped_state(self, state_dim: int) -> list[int]:
+        """Indices of ``drop_state`` in the env's state vector (qpos 22, palm velocity 6, palm position 3,
+        [bucket: palm-up 1], t / horizon last)."""
+        where = {"time": [state_dim - 1], "palm_velocity": list(range(22, 28))}
+        names = [n.strip() for n in self.drop_state.split(",") if n.strip()]
+        for name in names:
+            check_choice("dropped state entry", name, where)
+        if names and not self.normalize:
+            raise ValueError("drop_state needs normalize (the mask lives in the input normalisation)")
+        return [i for name in names for i in where[name]]
 
     def head_widths(self) -> list[int]:
         try:
@@ -156,6 +169,7 @@ def validate(cfg: DistillConfig) -> None:
     if cfg.max_minutes is not None and not cfg.max_minutes > 0:
         raise ValueError(f"max_minutes must be > 0, got {cfg.max_minutes}")
     cfg.head_widths()
+    cfg.dropped_state(33)
     if not (math.isfinite(cfg.arm_weight) and cfg.arm_weight > 0):
         raise ValueError(f"arm_weight must be a finite weight > 0, got {cfg.arm_weight}")
     cfg.object_names()
@@ -283,7 +297,8 @@ def distill(cfg: DistillConfig) -> dict:
         actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std,
                                          **architecture(dims))
         if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
-            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY])
+            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY],
+                                                     cfg.dropped_state(dims["state_dim"]))
         # the auxiliary head (trunk features -> privileged object state) lives only during distillation
         aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
         buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))

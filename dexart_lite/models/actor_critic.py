@@ -58,14 +58,19 @@ class Trunk(nn.Module):
             self.register_buffer("state_scale", torch.ones(state_dim))
             self.register_buffer("point_loc", torch.zeros(3))
             self.register_buffer("point_scale", torch.ones(1))
+            self.register_buffer("state_mask", torch.ones(state_dim))  # 0: an entry the network never sees
 
     @torch.no_grad()
-    def set_normalization(self, states: torch.Tensor, points: torch.Tensor) -> None:
-        """Centre and scale from samples: ``states`` (S, D), ``points`` (S, N, 3) (m)."""
+    def set_normalization(self, states: torch.Tensor, points: torch.Tensor, drop: list[int] | None = None) -> None:
+        """Centre and scale from samples: ``states`` (S, D), ``points`` (S, N, 3) (m). ``drop``: state
+        entries zeroed after normalisation (e.g. t / horizon, which a student can use as a clock)."""
         if not self.normalize:
             raise ValueError("this trunk was built with normalize=False")
         self.state_loc.copy_(states.mean(0))
         self.state_scale.copy_(states.std(0).clamp_min(1e-2))  # constant entries (t/T at reset...) stay finite
+        self.state_mask.fill_(1.0)
+        if drop:
+            self.state_mask[list(drop)] = 0.0
         flat = points.reshape(-1, 3)
         self.point_loc.copy_(flat.mean(0))
         self.point_scale.copy_(flat.std(0).mean().clamp_min(1e-3).reshape(1))
@@ -74,7 +79,7 @@ class Trunk(nn.Module):
         """points (..., N, 3), state (..., D) -> (..., 320)."""
         if self.normalize:
             points = (points - self.point_loc) / self.point_scale
-            state = (state - self.state_loc) / self.state_scale
+            state = (state - self.state_loc) / self.state_scale * self.state_mask
         return torch.cat([self.encoder(points), self.state_mlp(state)], dim=-1)
 
 

@@ -22,8 +22,8 @@ from dexart_lite.envs import make
 from dexart_lite.imitation import demos as demos_lib
 from dexart_lite.imitation.demos import collect_demos, load_demos
 from dexart_lite.imitation.distill import DistillConfig, collect_dagger, distill, train_student, validate
-from dexart_lite.models.actor_critic import action_log_std, make_actor_critic
-from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+from dexart_lite.models.actor_critic import action_log_std, make_actor_critic, trunk_of
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, architecture, load_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rollout import per_object_summary, run_episodes
 
@@ -269,8 +269,14 @@ def test_student_checkpoint_loads_strictly_and_evaluates_from_the_command_line(t
     cfg, result = tiny_run
     payload = load_checkpoint(result["checkpoint"])
     student = actor_critic_from_checkpoint(payload, result["checkpoint"])  # strict load into make_actor_critic
-    fresh = make_actor_critic(payload["dims"]["state_dim"], payload["dims"]["action_dim"], cfg.encoder)
+    fresh = make_actor_critic(payload["dims"]["state_dim"], payload["dims"]["action_dim"], cfg.encoder,
+                              **architecture(payload["dims"]))
     assert student.state_dict().keys() == fresh.state_dict().keys()
+    assert payload["dims"]["head"] == cfg.head_widths() and payload["dims"]["normalize"] == cfg.normalize
+    # DexArt's own architecture (64, 64 head, raw inputs) has other weights: the strict load refuses it
+    with pytest.raises(RuntimeError):
+        make_actor_critic(payload["dims"]["state_dim"], payload["dims"]["action_dim"], cfg.encoder).load_state_dict(
+            payload["model"], strict=True)
     assert payload["frames"] == 32 and payload["batches"] == 3 and len(payload["history"]) == 3
     out = tmp_path / "eval.json"
     assert cli.main(["eval", "--ckpt", result["checkpoint"], "--split", "unseen", "--episodes-per-object", "1",
@@ -359,3 +365,31 @@ def test_perception_probe_smoke(tmp_path, monkeypatch):
     data = probe.collect("laptop", "seen", 1, 0.0, 0, 2)
     assert data["points"].shape[1:] == (608, 3) and data["labels"].shape[1] == 608
     assert data["privileged"].shape[1] == 20 and abs(float(data["privileged"][0, 9]) - 0.2) < 0.05
+
+
+def test_input_normalisation_is_set_from_data_and_masks_dropped_entries():
+    """The trunk's fixed normalisation: states centred and scaled per entry, points by one centre and
+    scale; a dropped entry (t / horizon) changes nothing in the output, a kept one does."""
+    actor_critic = make_actor_critic(32, 22, normalize=True)
+    trunk = trunk_of(actor_critic)
+    states, points = torch.randn(64, 32) * 3 + 1, torch.rand(64, 40, 3) * 0.5
+    trunk.set_normalization(states, points, drop=[31])
+    torch.testing.assert_close(trunk.state_loc, states.mean(0))
+    torch.testing.assert_close(trunk.point_loc, points.reshape(-1, 3).mean(0))
+    assert trunk.state_mask[31] == 0 and trunk.state_mask[:31].eq(1).all()
+    x, changed_time, changed_qpos = states[:4], states[:4].clone(), states[:4].clone()
+    changed_time[:, 31] += 5.0
+    changed_qpos[:, 0] += 5.0
+    with torch.no_grad():
+        out = trunk(points[:4], x)
+        assert torch.equal(trunk(points[:4], changed_time), out)
+        assert not torch.allclose(trunk(points[:4], changed_qpos), out)
+    with pytest.raises(ValueError, match="normalize=False"):
+        trunk_of(make_actor_critic(32, 22)).set_normalization(states, points)
+
+
+def test_bad_architecture_settings_are_rejected(tmp_path):
+    for bad in ({"head": "64,,x"}, {"arm_weight": 0.0}, {"drop_state": "time", "normalize": False},
+                {"drop_state": "clock"}):
+        with pytest.raises(ValueError):
+            validate(tiny_distill_config(tmp_path, **bad))

@@ -85,12 +85,12 @@ class DistillConfig:
                             "predict the expert's privileged object state (a linear head, dropped after training; "
                             "0: off)"})
     init_log_std: float = field(default=0.0, metadata={"help": "initial log std of the student's actions (for PPO)"})
-    head: str = field(default="64,64", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
-    normalize: bool = field(default=False, metadata={"help": "fixed input normalisation in the trunk, set from the "
+    head: str = field(default="256,256", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
+    normalize: bool = field(default=True, metadata={"help": "fixed input normalisation in the trunk, set from the "
                             "demonstrations (DexArt: none)"})
     drop_state: str = field(default="", metadata={"help": "state entries the student does not see (needs "
                             "--normalize): comma-separated from time, palm_velocity"})
-    arm_weight: float = field(default=1.0, metadata={"help": "loss weight of the 6 arm (twist) dimensions relative "
+    arm_weight: float = field(default=3.0, metadata={"help": "loss weight of the 6 arm (twist) dimensions relative "
                               "to the 16 hand dimensions"})
     max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})

@@ -390,6 +390,6 @@ def test_input_normalisation_is_set_from_data_and_masks_dropped_entries():
 
 def test_bad_architecture_settings_are_rejected(tmp_path):
     for bad in ({"head": "64,,x"}, {"arm_weight": 0.0}, {"drop_state": "time", "normalize": False},
-                {"drop_state": "clock"}):
+                {"drop_state": "clock"}, {"ema": 1.0}, {"ema": -0.1}):
         with pytest.raises(ValueError):
             validate(tiny_distill_config(tmp_path, **bad))

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from tensordict import TensorDictBase
+from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 from tqdm import tqdm
@@ -78,6 +79,8 @@ class DistillConfig:
     beta: float = field(default=0.5, metadata={"help": "DAgger: probability of executing the expert's action, round 1"})
     beta_decay: float = field(default=0.6, metadata={"help": "DAgger: beta is multiplied by this after each round"})
     lr: float = field(default=1e-3, metadata={"help": "Adam learning rate"})
+    ema: float = field(default=0.995, metadata={"help": "decay of the exponential moving average of the weights "
+                       "that acts and is saved (0: the trained weights themselves)"})
     batch_size: int = 256
     weight_decay: float = field(default=0.0, metadata={"help": "Adam weight decay"})
     loss: str = field(default="mse", metadata={"help": "mse on the mean action, or nll (Gaussian, trains the log-std)"})
@@ -154,6 +157,8 @@ def validate(cfg: DistillConfig) -> None:
                  "batch_size", "max_samples", "num_points"):
         if getattr(cfg, name) < 1:
             raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
+    if not 0.0 <= cfg.ema < 1.0:
+        raise ValueError(f"ema must be in [0, 1), got {cfg.ema}")
     for name in ("beta", "beta_decay"):
         if not 0.0 <= getattr(cfg, name) <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {getattr(cfg, name)}")
@@ -177,10 +182,11 @@ def validate(cfg: DistillConfig) -> None:
 
 # ----------------------------------------------------------------------------- learning
 def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig,
-                  epochs: int, aux_head: torch.nn.Module | None = None) -> list[float]:
+                  epochs: int, aux_head: torch.nn.Module | None = None, ema: AveragedModel | None = None) -> list[float]:
     """Regress the policy mean onto ``data["expert_action"]`` for ``epochs`` shuffled passes (Adam,
     minibatches of ``cfg.batch_size``); returns the mean loss of each epoch. ``data``: a TensorDict
-    of samples (``demos.SAMPLE_SPECS``), in memory or memory-mapped.
+    of samples (``demos.SAMPLE_SPECS``), in memory or memory-mapped. ``ema``: an exponential moving
+    average of the weights, updated after every step.
 
     With ``aux_head`` (a Linear from the trunk's 320 features to ``data["privileged"]``'s size) and
     ``cfg.aux_coef > 0``, the loss adds ``aux_coef`` times the MSE of the head's prediction of the
@@ -217,6 +223,8 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
                 optimizer.zero_grad()
                 loss.backward()
                 optimizer.step()
+                if ema is not None:
+                    ema.update_parameters(actor_critic)
                 total += float(loss.detach()) * len(idx)
             losses.append(total / n)
     return losses
@@ -299,6 +307,11 @@ def distill(cfg: DistillConfig) -> dict:
         if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
             trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY],
                                                      cfg.dropped_state(dims["state_dim"]))
+        # The student that acts and is saved: an exponential moving average of the trained weights (a
+        # closed-loop policy is sensitive to the last few gradient steps; the average is steadier).
+        ema = AveragedModel(actor_critic, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema), use_buffers=True) \
+            if cfg.ema > 0 else None
+        student_net = ema.module if ema is not None else actor_critic
         # the auxiliary head (trunk features -> privileged object state) lives only during distillation
         aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
         buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
@@ -315,7 +328,7 @@ def distill(cfg: DistillConfig) -> dict:
                    "collect_s": collect_s, "train_s": train_s, "wall_s": time.perf_counter() - start}
             history.append(row)
             write_log(out / "log.csv", history)
-            save_student(out / CHECKPOINT, actor_critic, cfg, dims, frames, history)
+            save_student(out / CHECKPOINT, student_net, cfg, dims, frames, history)
             return row
 
         rounds = cfg.rounds if cfg.method == "dagger" else 0
@@ -333,14 +346,14 @@ def distill(cfg: DistillConfig) -> dict:
             # ---- 2. behaviour cloning on the demonstrations
             tick = time.perf_counter()
             buffer.extend(demos)
-            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs, aux_head)
+            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs, aux_head, ema)
             expert = {"success_rate": manifest["expert_success_rate"],
                       "mean_max_stage": manifest["expert_mean_max_stage"]}
             advance(log_round("bc", 1.0, len(manifest["episodes"]), expert, manifest["samples"], losses, 1.0,
                               0.0 if cfg.demos else manifest["wall_time_s"], time.perf_counter() - tick))
 
             # ---- 3. DAgger: the student drives (with probability 1 - beta), the expert labels
-            scripted, student = ScriptedPolicy(env), policy_function(actor_critic)
+            scripted, student = ScriptedPolicy(env), policy_function(student_net)
             episodes_done = len(manifest["episodes"])
             index_names = manifest["objects"] + [n for n in names if n not in manifest["objects"]]  # "object" index
             for r in range(1, rounds + 1):
@@ -356,22 +369,22 @@ def distill(cfg: DistillConfig) -> dict:
                 frames["student"] += samples.batch_size[0]
                 buffer.extend(samples)
                 collected = time.perf_counter()
-                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round, aux_head)
+                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round, aux_head, ema)
                 advance(log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0],
                                   losses, share, collected - tick, time.perf_counter() - collected))
         finally:
             bar.close()
             env.close()
             shutil.rmtree(out / "buffer", ignore_errors=True)
-        ckpt = save_student(out / CHECKPOINT, actor_critic, cfg, dims, frames, history)
-        encoder = save_encoder(encoder_of(actor_critic), out / "encoder.pt")
+        ckpt = save_student(out / CHECKPOINT, student_net, cfg, dims, frames, history)
+        encoder = save_encoder(encoder_of(student_net), out / "encoder.pt")
 
         # ---- 4. evaluation on seen and unseen objects, GIF, curve, report
-        evals = evaluate_student(actor_critic, cfg, out)
+        evals = evaluate_student(student_net, cfg, out)
         gif = None
         if cfg.gif:
             unseen = objects_lib.list_objects(cfg.task, "unseen")[0].name
-            gif = record_gif(actor_critic, cfg.task, out / "episode.gif", "unseen", unseen, cfg.eval_seed,
+            gif = record_gif(student_net, cfg.task, out / "episode.gif", "unseen", unseen, cfg.eval_seed,
                              cfg.env_kwargs())["path"]
     curve = plot_rounds(history, evals, out / "rounds.png", title=f"{cfg.method} on {cfg.task}, {cfg.encoder} PointNet")
     wall = time.perf_counter() - start

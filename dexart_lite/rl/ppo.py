@@ -193,28 +193,35 @@ def batch_stats(data) -> dict:
     return stats
 
 
-def train(cfg: PPOConfig) -> dict:
-    """Train, evaluate on seen and unseen objects, write the report; returns the paths and results."""
-    from tensordict import TensorDict
-    from torchrl.objectives import ClipPPOLoss
-    from torchrl.objectives.value import GAE
-    from torchrl.record.loggers import CSVLogger
+@dataclass
+class Learner:
+    """The actor-critic and everything that updates it (built once per run by ``build_learner``)."""
 
+    actor_critic: torch.nn.Module
+    loss_module: torch.nn.Module  # ClipPPOLoss
+    optimizer: torch.optim.Optimizer
+    trainable: list
+    gae: torch.nn.Module
+    dims: dict  # num_points, state_dim, action_dim of the env
+
+
+def open_run(cfg: PPOConfig) -> Path:
+    """Check ``cfg`` and the output folder (a finished run is never overwritten without --resume)."""
     validate(cfg)
-    start = time.perf_counter()
     out = Path(cfg.out)
-    ckpt_path = out / CHECKPOINT
-    if ckpt_path.exists() and not cfg.resume:
+    if (out / CHECKPOINT).exists() and not cfg.resume:
         raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
-    if cfg.resume and not ckpt_path.exists():
+    if cfg.resume and not (out / CHECKPOINT).exists():
         raise FileNotFoundError(f"--resume: no checkpoint in {out}")
     out.mkdir(parents=True, exist_ok=True)
-    learner_threads = cfg.threads or torch.get_num_threads()
-    torch.set_num_threads(learner_threads)
-    torch.manual_seed(cfg.seed)
+    return out
 
-    # ---- env factory (picklable, for the worker processes) and the actor-critic
-    env_fn = partial(make_env, cfg.task, split=cfg.split, **cfg.env_kwargs())
+
+def build_learner(cfg: PPOConfig, env_fn) -> Learner:
+    """Actor-critic (optionally with a pretrained, frozen PointNet), ClipPPOLoss, Adam and GAE."""
+    from torchrl.objectives import ClipPPOLoss
+    from torchrl.objectives.value import GAE
+
     probe = env_fn()
     num_points, state_dim, action_dim = env_dims(probe)
     probe.close()
@@ -223,8 +230,7 @@ def train(cfg: PPOConfig) -> dict:
         load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
     if cfg.freeze_encoder:
         encoder_of(actor_critic).requires_grad_(False)
-
-    # ---- loss: the critic is the value HEAD, so the trunk runs once per minibatch
+    # the critic is the value HEAD, so the trunk runs once per minibatch
     loss_module = ClipPPOLoss(actor_network=actor_critic.get_policy_operator(),
                               critic_network=actor_critic.get_value_head(), clip_epsilon=cfg.clip_epsilon,
                               entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.vf_coef, loss_critic_type="l2",
@@ -232,119 +238,145 @@ def train(cfg: PPOConfig) -> dict:
     trainable = [p for p in loss_module.parameters() if p.requires_grad]
     optimizer = torch.optim.Adam(trainable, lr=cfg.lr, eps=cfg.adam_eps)
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.lmbda, value_network=None, average_gae=False)  # reads the values
-    value_operator = actor_critic.get_value_operator()
+    return Learner(actor_critic, loss_module, optimizer, trainable, gae,
+                   {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim})
 
-    frames_done, batches, history = 0, 0, []
-    if cfg.resume:
-        state = load_checkpoint(ckpt_path)
-        if state["config"]["encoder"] != cfg.encoder or state["config"]["task"] != cfg.task:
-            raise ValueError(f"--resume: {ckpt_path} is a {state['config']['encoder']} {state['config']['task']} "
-                             f"run, not {cfg.encoder} {cfg.task}")
-        actor_critic.load_state_dict(state["model"], strict=True)
-        optimizer.load_state_dict(state["optimizer"])
-        frames_done, batches, history = state["frames"], state["batches"], state["history"]
 
-    def checkpoint() -> Path:
-        return save_checkpoint(ckpt_path, {
-            "config": asdict(cfg), "model": actor_critic.state_dict(), "optimizer": optimizer.state_dict(),
-            "frames": frames_done, "batches": batches, "history": history,
-            "dims": {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim}})
+def restore(learner: Learner, cfg: PPOConfig, path: Path) -> tuple[int, int, list]:
+    """Weights and optimizer from a checkpoint of the same task and encoder; (frames, batches, history)."""
+    state = load_checkpoint(path)
+    if state["config"]["encoder"] != cfg.encoder or state["config"]["task"] != cfg.task:
+        raise ValueError(f"--resume: {path} is a {state['config']['encoder']} {state['config']['task']} "
+                         f"run, not {cfg.encoder} {cfg.task}")
+    learner.actor_critic.load_state_dict(state["model"], strict=True)
+    learner.optimizer.load_state_dict(state["optimizer"])
+    return state["frames"], state["batches"], state["history"]
 
-    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass).
-    # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed
-    # the envs because DistributedCollector.set_seed fails in torchrl 0.14.1.
-    remaining = cfg.frames - frames_done
-    collector = None
-    if remaining > 0:
-        env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i) for i in range(max(cfg.workers, 1))]
-        collector = make_collector(cfg, env_fns, actor_critic, total_frames=remaining)
-    in_process = cfg.backend == "process" and cfg.workers <= 1  # collects in this process, one action at a time
-    logger = CSVLogger(exp_name="log", log_dir=str(out))
-    bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
-               disable=not cfg.progress,  # with a time budget the ETA is for all frames; the budget ends it sooner
-               desc=f"PPO {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)" if cfg.max_minutes else ""))
-    tick = time.perf_counter()
-    try:  # shut the workers down on errors too
-        torch.set_num_threads(1 if in_process else learner_threads)
-        for data in collector or []:
-            collected = time.perf_counter()
-            torch.set_num_threads(learner_threads)
-            data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
-            n = data.numel()
 
-            # ---- advantages: GAE over time (the last batch dimension), once per batch as SB3
-            with torch.no_grad():
-                add_next_values(data, value_operator)
-                gae(data)
-            flat = data.reshape(-1).select(*BATCH_KEYS)
+def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int, history: list) -> Path:
+    return save_checkpoint(path, {
+        "config": asdict(cfg), "model": learner.actor_critic.state_dict(), "optimizer": learner.optimizer.state_dict(),
+        "frames": frames, "batches": batches, "history": history, "dims": learner.dims})
 
-            # ---- PPO epochs over shuffled minibatches
-            sums = dict.fromkeys(LOSS_KEYS, 0.0)
-            steps = 0
-            for _ in range(cfg.epochs):
-                for idx in torch.randperm(n).split(cfg.minibatch):
-                    loss_td = loss_module(flat[idx])
-                    loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
-                    optimizer.zero_grad()
-                    loss.backward()
-                    torch.nn.utils.clip_grad_norm_(trainable, cfg.max_grad_norm)
-                    optimizer.step()
-                    for key in LOSS_KEYS:
-                        sums[key] += float(loss_td[key].detach())
-                    steps += 1
-            collector.update_policy_weights_()
-            updated = time.perf_counter()
 
-            # ---- logging
-            frames_done += n
-            batches += 1
-            row = {"frames": frames_done, "batch": batches, **batch_stats(data),
-                   **{k: v / steps for k, v in sums.items()},
-                   "log_std": float(action_log_std(actor_critic).mean()),
-                   "collect_s": collected - tick, "update_s": updated - collected,
-                   "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
-                   "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
-            history.append(row)
-            logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
-            bar.update(n)
-            bar.set_postfix(ret=f"{row['episode_return']:.1f}", succ=f"{row['success_rate']:.2f}",
-                            fps=f"{row['fps']:.0f}")
-            if batches % cfg.checkpoint_every == 0:
-                checkpoint()
-            if cfg.max_minutes is not None and time.perf_counter() - start > 60 * cfg.max_minutes:
-                break
-            torch.set_num_threads(1 if in_process else learner_threads)
-            tick = time.perf_counter()
-    finally:
-        bar.close()
-        if collector is not None:
-            collector.shutdown()
-        torch.set_num_threads(learner_threads)
-    ckpt = checkpoint()
+def advantages(data, learner: Learner):
+    """GAE over time (the last batch dimension), once per batch as SB3; the flat batch the loss reads."""
+    with torch.no_grad():
+        add_next_values(data, learner.actor_critic.get_value_operator())
+        learner.gae(data)
+    return data.reshape(-1).select(*BATCH_KEYS)
 
-    # ---- evaluation on seen and unseen objects, learning curve, report
+
+def ppo_update(flat, learner: Learner, cfg: PPOConfig) -> dict:
+    """``cfg.epochs`` passes of clipped-PPO minibatch steps over one batch; the mean of each loss term."""
+    sums, steps = dict.fromkeys(LOSS_KEYS, 0.0), 0
+    for _ in range(cfg.epochs):
+        for idx in torch.randperm(flat.numel()).split(cfg.minibatch):
+            loss_td = learner.loss_module(flat[idx])
+            loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
+            learner.optimizer.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(learner.trainable, cfg.max_grad_norm)
+            learner.optimizer.step()
+            for key in LOSS_KEYS:
+                sums[key] += float(loss_td[key].detach())
+            steps += 1
+    return {k: v / steps for k, v in sums.items()}
+
+
+def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:
+    # with a time budget the ETA is for all frames; the budget ends the run sooner
+    return tqdm(total=cfg.frames, initial=initial, unit="frame", unit_scale=True, dynamic_ncols=True,
+                disable=not cfg.progress,
+                desc=f"PPO {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)" if cfg.max_minutes else ""))
+
+
+def evaluate_and_report(cfg: PPOConfig, learner: Learner, history: list, start: float) -> dict:
+    """Evaluation on seen and unseen objects, learning curve, optional GIF and ``report.md``."""
     from dexart_lite.rl.evaluate import evaluate, markdown_table, record_gif
     from dexart_lite.rl.report import plot_curve, write_report
 
-    evals = []
-    if cfg.eval_episodes > 0:
-        for split in ("seen", "unseen"):
-            result = evaluate(actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
-            (out / f"eval_{split}.json").write_text(json.dumps(result, indent=2))
-            evals.append(result)
-    gif = None
+    out, evals, gif = Path(cfg.out), [], None
+    for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
+        result = evaluate(learner.actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
+        (out / f"eval_{split}.json").write_text(json.dumps(result, indent=2))
+        evals.append(result)
     if cfg.gif:
         name = objects_lib.list_objects(cfg.task, "seen")[0].name
-        gif = record_gif(actor_critic, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,
+        gif = record_gif(learner.actor_critic, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,
                          cfg.env_kwargs())["path"]
     curve = plot_curve(history, out / "learning_curve.png", title=f"PPO {cfg.task}, {cfg.encoder} PointNet")
     wall = time.perf_counter() - start
     report = write_report(out / "report.md", asdict(cfg), history, evals, curve, wall, gif)
     if evals and cfg.progress:
         print(markdown_table(evals))
-    return {"checkpoint": str(ckpt), "report": str(report), "curve": str(curve), "gif": gif,
-            "log_dir": str(out / "log"), "frames": frames_done, "wall_time_s": wall,
-            "eval": {e["split"]: e for e in evals}, "history": history}
+    return {"report": str(report), "curve": str(curve), "gif": gif, "log_dir": str(out / "log"),
+            "wall_time_s": wall, "eval": {e["split"]: e for e in evals}}
+
+
+def train(cfg: PPOConfig) -> dict:
+    """Train, evaluate on seen and unseen objects, write the report; returns the paths and results."""
+    from torchrl.record.loggers import CSVLogger
+
+    start = time.perf_counter()
+    out = open_run(cfg)
+    ckpt_path = out / CHECKPOINT
+    learner_threads = cfg.threads or torch.get_num_threads()
+    torch.set_num_threads(learner_threads)
+    torch.manual_seed(cfg.seed)
+
+    # ---- env factory (picklable, for the worker processes), the learner, and where we start from
+    env_fn = partial(make_env, cfg.task, split=cfg.split, **cfg.env_kwargs())
+    learner = build_learner(cfg, env_fn)
+    frames_done, batches, history = restore(learner, cfg, ckpt_path) if cfg.resume else (0, 0, [])
+
+    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass).
+    # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed
+    # the envs because DistributedCollector.set_seed fails in torchrl 0.14.1.
+    collector = None
+    if cfg.frames > frames_done:
+        env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i) for i in range(max(cfg.workers, 1))]
+        collector = make_collector(cfg, env_fns, learner.actor_critic, total_frames=cfg.frames - frames_done)
+    in_process = cfg.backend == "process" and cfg.workers <= 1  # collects in this process, one action at a time
+    collect_threads = 1 if in_process else learner_threads
+    logger, bar = CSVLogger(exp_name="log", log_dir=str(out)), progress_bar(cfg, frames_done)
+    tick = time.perf_counter()
+    try:  # shut the workers down on errors too
+        torch.set_num_threads(collect_threads)
+        for data in collector or []:
+            collected = time.perf_counter()
+            torch.set_num_threads(learner_threads)
+            data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
+            losses = ppo_update(advantages(data, learner), learner, cfg)
+            collector.update_policy_weights_()
+            updated = time.perf_counter()
+
+            # ---- logging and checkpoints
+            n = data.numel()
+            frames_done, batches = frames_done + n, batches + 1
+            row = {"frames": frames_done, "batch": batches, **batch_stats(data), **losses,
+                   "log_std": float(action_log_std(learner.actor_critic).mean()),
+                   "collect_s": collected - tick, "update_s": updated - collected,
+                   "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
+                   "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
+            history.append(row)
+            logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
+            bar.update(n)
+            bar.set_postfix(ret=f"{row['episode_return']:.1f}", succ=f"{row['success_rate']:.2f}", fps=f"{row['fps']:.0f}")
+            if batches % cfg.checkpoint_every == 0:
+                save(learner, cfg, ckpt_path, frames_done, batches, history)
+            if cfg.max_minutes is not None and time.perf_counter() - start > 60 * cfg.max_minutes:
+                break
+            torch.set_num_threads(collect_threads)
+            tick = time.perf_counter()
+    finally:
+        bar.close()
+        if collector is not None:
+            collector.shutdown()
+        torch.set_num_threads(learner_threads)
+    ckpt = save(learner, cfg, ckpt_path, frames_done, batches, history)
+    result = evaluate_and_report(cfg, learner, history, start)  # ---- seen and unseen objects, curve, report
+    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, **result}
 
 
 # ---------------------------------------------------------------- command line

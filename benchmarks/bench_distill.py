@@ -6,6 +6,10 @@ Each seed is one ``dexart-lite distill`` run with the defaults of ``DistillConfi
 into ``runs/distill_<task>_<method>_s<seed>``; a seed whose folder already holds ``eval_unseen.json``
 from the same settings is read back instead of run again (an interrupted study resumes). The seeds
 run one after the other, alone, so each ``wall_time_s`` is the run's own on this machine.
+A variant changes some fields and names its run folders::
+
+    python benchmarks/bench_distill.py --task laptop --variant novel --set drop_state=time,palm_velocity \
+        --json benchmarks/results/distill_laptop_novel.json
 
 Writes ``task``, ``method``, ``seeds``, ``seen_success`` / ``unseen_success`` (means over seeds),
 ``per_seed`` (success, mean stage, frames, wall time, the per-round log), ``expert_frames``,
@@ -18,14 +22,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict
+from dataclasses import asdict, fields
 from pathlib import Path
 
 import numpy as np
 
 import dexart_lite
 from dexart_lite.imitation.distill import METHODS, DistillConfig, distill
-from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
+from dexart_lite.utils import check_choice, command_line, fast_mode, machine_info, write_json
 
 RESULTS = Path(__file__).parent / "results"
 # DexArt Table 2, PPO without pre-training, success seen / unseen (mean over 3 seeds), for reference only
@@ -58,6 +62,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--encoder", default="small")
     parser.add_argument("--runs", type=Path, default=Path("runs"), help="parent of the per-seed run folders")
+    parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
+                        help="DistillConfig fields to change from the defaults, e.g. drop_state=palm_velocity")
+    parser.add_argument("--variant", default="", help="a name for --set, in the run folders (distill_<task>_<method>_<variant>_s<seed>)")
     parser.add_argument("--json", type=Path, help="default benchmarks/results/distill_<task>.json")
     parser.add_argument("--collect", type=Path, nargs="+", metavar="RUN_DIR",
                         help="summarise these finished `dexart-lite distill` folders instead of running seeds")
@@ -65,9 +72,11 @@ def main(argv=None) -> dict:
     if args.collect:
         return collect(args, argv)
     path = args.json or RESULTS / f"distill_{args.task}.json"
-    overrides = {}
+    overrides = parse_overrides(args.overrides)
+    if overrides and not args.variant:
+        raise ValueError("--set needs a --variant name (its runs must not mix with the defaults' folders)")
     if fast_mode():  # a smoke run of the script itself, not evidence
-        overrides = dict(num_points=32, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
+        overrides.update(num_points=32, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
                          episodes_per_round=1, epochs=1, epochs_per_round=1, eval_episodes=1, progress=False,
                          threads=1, objects=dexart_lite.objects.list_objects(args.task, "seen")[0].name)
         if args.json is None:  # never overwrite the committed evidence with a smoke run
@@ -76,17 +85,46 @@ def main(argv=None) -> dict:
     per_seed = []
     for seed in args.seeds:
         cfg = DistillConfig(task=args.task, method=args.method, encoder=args.encoder, seed=seed,
-                            out=str(args.runs / f"distill_{args.task}_{args.method}_s{seed}"), **overrides)
+                            out=str(args.runs / "_".join(filter(None, ("distill", args.task, args.method, args.variant,
+                                                                        f"s{seed}")))), **overrides)
         per_seed.append({"seed": seed, **run_seed(cfg)})
         print(f"seed {seed}: seen {per_seed[-1]['seen_success']:.2f}, unseen {per_seed[-1]['unseen_success']:.2f}, "
               f"{per_seed[-1]['wall_time_s'] / 60:.1f} min")
 
     result = summary(per_seed, args.task, args.method, args.encoder, argv)
+    result["variant"], result["overrides"] = args.variant, parse_overrides(args.overrides)
     write_json(path, result)
     plot(per_seed, path.with_suffix(".png"), f"{args.method} on {args.task} ({args.encoder} PointNet)")
     print(f"{args.task} {args.method}: seen {result['seen_success']:.2f} +- {result['seen_success_std']:.2f}, "
           f"unseen {result['unseen_success']:.2f} +- {result['unseen_success_std']:.2f}; wrote {path}")
     return result
+
+
+def parse_overrides(pairs: list[str]) -> dict:
+    """``["drop_state=palm_velocity", "rounds=8"]`` -> DistillConfig fields, typed like their defaults."""
+    defaults = {f.name: f.default for f in fields(DistillConfig)}
+    out = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep:
+            raise ValueError(f"--set takes FIELD=VALUE, got {pair!r}")
+        check_choice("DistillConfig field", name, defaults)
+        default = defaults[name]
+        if isinstance(default, bool):
+            out[name] = value.lower() in ("1", "true", "yes")
+        elif isinstance(default, (int, float, str)):
+            out[name] = type(default)(value)
+        else:  # a field whose default is None: a number if it reads as one
+            out[name] = next((kind(value) for kind in (int, float) if _parses(kind, value)), value)
+    return out
+
+
+def _parses(kind, value: str) -> bool:
+    try:
+        kind(value)
+    except ValueError:
+        return False
+    return True
 
 
 def collect(args, argv) -> dict:

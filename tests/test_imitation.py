@@ -414,3 +414,20 @@ def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch):
         assert row["episodes"] == 2 and total == pytest.approx(1.0)
         assert np.isfinite(row["arm_error"]) and row["arm_error"] >= 0 and 0 <= row["stalled_frac"] <= 1
     assert out["rows"][0]["arm_error"] != out["rows"][1]["arm_error"]
+
+
+def test_bench_distill_variants_are_typed_and_named(tmp_path, monkeypatch):
+    """--set changes DistillConfig fields with their types; it needs --variant, and unknown fields are refused."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_distill.py"
+    spec = importlib.util.spec_from_file_location("bench_distill", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert bench.parse_overrides(["drop_state=time,palm_velocity", "rounds=8", "ema=0.99", "normalize=false",
+                                  "max_episode_steps=50"]) == \
+        {"drop_state": "time,palm_velocity", "rounds": 8, "ema": 0.99, "normalize": False, "max_episode_steps": 50}
+    with pytest.raises(ValueError, match="valid choices: task, method"):
+        bench.parse_overrides(["nope=1"])
+    with pytest.raises(ValueError, match="needs a --variant"):
+        bench.main(["--set", "rounds=2", "--runs", str(tmp_path), "--json", str(tmp_path / "x.json")])

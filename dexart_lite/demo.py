@@ -1,6 +1,6 @@
 """The main job on defaults (what ``make demo`` runs): a point-cloud policy that opens laptops, seen and unseen.
 
-    dexart-lite demo                      # about 8 minutes on 2 CPU cores
+    dexart-lite demo                      # about 7 minutes on 2 CPU cores
     dexart-lite demo --minutes 15         # a longer distillation budget
 
 It distils the scripted laptop expert (``experts.FeedbackLidSolver``, which reads the simulator)

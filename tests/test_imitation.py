@@ -431,3 +431,11 @@ def test_bench_distill_variants_are_typed_and_named(tmp_path, monkeypatch):
         bench.parse_overrides(["nope=1"])
     with pytest.raises(ValueError, match="needs a --variant"):
         bench.main(["--set", "rounds=2", "--runs", str(tmp_path), "--json", str(tmp_path / "x.json")])
+
+
+def test_auto_drop_state_masks_the_velocity_on_laptop_only():
+    """drop_state="auto": laptop students do not see palm velocity (state 22-27) or the time (last entry);
+    faucet students see everything (the mask hurt them, see distill.DROP_STATE)."""
+    assert DistillConfig(task="laptop").dropped_state(32) == [31, 22, 23, 24, 25, 26, 27]
+    assert DistillConfig(task="faucet").dropped_state(32) == []
+    assert DistillConfig(task="bucket", drop_state="time").dropped_state(33) == [32]

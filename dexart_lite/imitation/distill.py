@@ -59,6 +59,16 @@ LOSSES = ("mse", "nll")
 CHECKPOINT = "checkpoint.pt"
 
 
+# State entries a task's students do not see by default (drop_state="auto"). The palm velocity is nearly
+# the last action (velocity control): a laptop student that sees it learns to repeat itself and stalls
+# where it once stopped (the "copycat" problem of behaviour cloning); masking it and the time raised
+# laptop students from 0.29 / 0.37 to 0.56 / 0.43 (seen / unseen, 3 seeds each). On faucets the same
+# mask cut them from 0.58 / 0.40 to 0.28 / 0.25 (3 seeds; turning a handle may need its speed), so
+# the other tasks keep the full state (toilet and bucket are not measured).
+# Evidence: benchmarks/results/distill_{laptop,laptop_novel,faucet,faucet_novel}.json.
+DROP_STATE = {"laptop": "time,palm_velocity"}
+
+
 @dataclass
 class DistillConfig:
     """One distillation run. On Laptop (11 seen objects, 250-step episodes) the defaults collect about
@@ -91,12 +101,9 @@ class DistillConfig:
     head: str = field(default="256,256", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
     normalize: bool = field(default=True, metadata={"help": "fixed input normalisation in the trunk, set from the "
                             "demonstrations (DexArt: none)"})
-    # The palm velocity is nearly the last action (velocity control): a student that sees it learns to
-    # repeat itself and stalls where it once stopped (the "copycat" problem of behaviour cloning).
-    # Masking it and the time raised laptop students from 0.29 / 0.37 to 0.56 / 0.43 (3 seeds each,
-    # benchmarks/results/distill_laptop{,_novel}.json).
-    drop_state: str = field(default="time,palm_velocity", metadata={"help": "state entries the student does not "
-                            "see (needs --normalize; '' for none): comma-separated from time, palm_velocity"})
+    drop_state: str = field(default="auto", metadata={"help": "state entries the student does not see (needs "
+                            "--normalize; '' for none; auto: DROP_STATE of the task): comma-separated from time, "
+                            "palm_velocity"})
     arm_weight: float = field(default=3.0, metadata={"help": "loss weight of the 6 arm (twist) dimensions relative "
                               "to the 16 hand dimensions"})
     max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
@@ -124,7 +131,8 @@ class DistillConfig:
         """Indices of ``drop_state`` in the env's state vector (qpos 22, palm velocity 6, palm position 3,
         [bucket: palm-up 1], t / horizon last)."""
         where = {"time": [state_dim - 1], "palm_velocity": list(range(22, 28))}
-        names = [n.strip() for n in self.drop_state.split(",") if n.strip()]
+        drop = DROP_STATE.get(self.task, "") if self.drop_state == "auto" else self.drop_state
+        names = [n.strip() for n in drop.split(",") if n.strip()]
         for name in names:
             check_choice("dropped state entry", name, where)
         if names and not self.normalize:

@@ -72,8 +72,9 @@ def main(argv=None) -> dict:
     if args.collect:
         return collect(args, argv)
     path = args.json or RESULTS / f"distill_{args.task}.json"
-    overrides = parse_overrides(args.overrides)
-    if overrides and not args.variant:
+    requested = parse_overrides(args.overrides)
+    overrides = dict(requested)  # plus the smoke-run settings in fast mode
+    if requested and not args.variant:
         raise ValueError("--set needs a --variant name (its runs must not mix with the defaults' folders)")
     if fast_mode():  # a smoke run of the script itself, not evidence
         overrides.update(num_points=32, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
@@ -92,7 +93,7 @@ def main(argv=None) -> dict:
               f"{per_seed[-1]['wall_time_s'] / 60:.1f} min")
 
     result = summary(per_seed, args.task, args.method, args.encoder, argv)
-    result["variant"], result["overrides"] = args.variant, parse_overrides(args.overrides)
+    result["variant"], result["overrides"] = args.variant, requested
     write_json(path, result)
     plot(per_seed, path.with_suffix(".png"), f"{args.method} on {args.task} ({args.encoder} PointNet)")
     print(f"{args.task} {args.method}: seen {result['seen_success']:.2f} +- {result['seen_success_std']:.2f}, "

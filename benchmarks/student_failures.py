@@ -22,7 +22,6 @@ the palm moved less than 2 mm per control step (a student stuck at a fixed point
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 

@@ -202,6 +202,7 @@ class Learner:
     optimizer: torch.optim.Optimizer
     trainable: list
     gae: torch.nn.Module
+    value_operator: torch.nn.Module  # V(s) alone, for the bootstrap values GAE needs
     dims: dict  # num_points, state_dim, action_dim of the env
 
 
@@ -238,7 +239,7 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     trainable = [p for p in loss_module.parameters() if p.requires_grad]
     optimizer = torch.optim.Adam(trainable, lr=cfg.lr, eps=cfg.adam_eps)
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.lmbda, value_network=None, average_gae=False)  # reads the values
-    return Learner(actor_critic, loss_module, optimizer, trainable, gae,
+    return Learner(actor_critic, loss_module, optimizer, trainable, gae, actor_critic.get_value_operator(),
                    {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim})
 
 
@@ -262,7 +263,7 @@ def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int
 def advantages(data, learner: Learner):
     """GAE over time (the last batch dimension), once per batch as SB3; the flat batch the loss reads."""
     with torch.no_grad():
-        add_next_values(data, learner.actor_critic.get_value_operator())
+        add_next_values(data, learner.value_operator)
         learner.gae(data)
     return data.reshape(-1).select(*BATCH_KEYS)
 

@@ -22,14 +22,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict, fields
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 import dexart_lite
 from dexart_lite.imitation.distill import METHODS, DistillConfig, distill
-from dexart_lite.utils import check_choice, command_line, fast_mode, machine_info, write_json
+from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json
 
 RESULTS = Path(__file__).parent / "results"
 # DexArt Table 2, PPO without pre-training, success seen / unseen (mean over 3 seeds), for reference only
@@ -72,7 +72,7 @@ def main(argv=None) -> dict:
     if args.collect:
         return collect(args, argv)
     path = args.json or RESULTS / f"distill_{args.task}.json"
-    requested = parse_overrides(args.overrides)
+    requested = parse_overrides(args.overrides, DistillConfig)
     overrides = dict(requested)  # plus the smoke-run settings in fast mode
     if requested and not args.variant:
         raise ValueError("--set needs a --variant name (its runs must not mix with the defaults' folders)")
@@ -99,33 +99,6 @@ def main(argv=None) -> dict:
     print(f"{args.task} {args.method}: seen {result['seen_success']:.2f} +- {result['seen_success_std']:.2f}, "
           f"unseen {result['unseen_success']:.2f} +- {result['unseen_success_std']:.2f}; wrote {path}")
     return result
-
-
-def parse_overrides(pairs: list[str]) -> dict:
-    """``["drop_state=palm_velocity", "rounds=8"]`` -> DistillConfig fields, typed like their defaults."""
-    defaults = {f.name: f.default for f in fields(DistillConfig)}
-    out = {}
-    for pair in pairs:
-        name, sep, value = pair.partition("=")
-        if not sep:
-            raise ValueError(f"--set takes FIELD=VALUE, got {pair!r}")
-        check_choice("DistillConfig field", name, defaults)
-        default = defaults[name]
-        if isinstance(default, bool):
-            out[name] = value.lower() in ("1", "true", "yes")
-        elif isinstance(default, (int, float, str)):
-            out[name] = type(default)(value)
-        else:  # a field whose default is None: a number if it reads as one
-            out[name] = next((kind(value) for kind in (int, float) if _parses(kind, value)), value)
-    return out
-
-
-def _parses(kind, value: str) -> bool:
-    try:
-        kind(value)
-    except ValueError:
-        return False
-    return True
 
 
 def collect(args, argv) -> dict:

@@ -46,3 +46,33 @@ def write_json(path, obj) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(obj, indent=2) + "\n")
+
+
+def parse_overrides(pairs: list[str], config_class) -> dict:
+    """``["rounds=8", "drop_state=palm_velocity"]`` -> fields of the dataclass ``config_class``, typed like
+    their defaults (a field whose default is None gets a number if the value reads as one)."""
+    from dataclasses import fields
+
+    defaults = {f.name: f.default for f in fields(config_class)}
+    out = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep:
+            raise ValueError(f"--set takes FIELD=VALUE, got {pair!r}")
+        check_choice(f"{config_class.__name__} field", name, defaults)
+        default = defaults[name]
+        if isinstance(default, bool):
+            out[name] = value.lower() in ("1", "true", "yes")
+        elif isinstance(default, (int, float, str)):
+            out[name] = type(default)(value)
+        else:
+            out[name] = next((kind(value) for kind in (int, float) if _parses(kind, value)), value)
+    return out
+
+
+def _parses(kind, value: str) -> bool:
+    try:
+        kind(value)
+    except ValueError:
+        return False
+    return True

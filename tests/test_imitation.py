@@ -26,6 +26,7 @@ from dexart_lite.models.actor_critic import action_log_std, make_actor_critic, t
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, architecture, load_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rollout import per_object_summary, run_episodes
+from dexart_lite.utils import parse_overrides
 
 OBJECT = objects_lib.list_objects("laptop", "seen")[0].name
 STEPS = 8  # steps per episode
@@ -287,6 +288,82 @@ def test_student_checkpoint_loads_strictly_and_evaluates_from_the_command_line(t
         distill(cfg)
 
 
+def ppo_from_student(tiny_run, tmp_path, **overrides):
+    """A 1-batch (or longer) in-process PPO run started from the tiny student."""
+    from dexart_lite.rl import ppo
+
+    cfg = dataclasses.replace(ppo.PPOConfig(), **{
+        "task": "laptop", "num_points": 32, "max_episode_steps": 10, "frames": 100, "frames_per_batch": 100,
+        "minibatch": 50, "epochs": 2, "workers": 0, "eval_episodes": 0, "progress": False,
+        "init_from": tiny_run[1]["checkpoint"], "init_log_std": -1.6, "out": str(tmp_path / "ppo"), **overrides})
+    return ppo.train(cfg)
+
+
+def test_student_starts_ppo_and_the_critic_warmup_freezes_the_actor(tiny_run, tmp_path):
+    student = load_checkpoint(tiny_run[1]["checkpoint"])["model"]
+    frozen = ppo_from_student(tiny_run, tmp_path / "warm", critic_warmup=1)
+    tuned = ppo_from_student(tiny_run, tmp_path / "free", critic_warmup=0)
+    assert frozen["history"][0]["critic_warmup"] == 1.0 and tuned["history"][0]["critic_warmup"] == 0.0
+    for result in (frozen, tuned):
+        payload = load_checkpoint(result["checkpoint"])
+        net = actor_critic_from_checkpoint(payload)  # the run keeps the student's architecture
+        assert payload["dims"]["head"] == [256, 256] and payload["dims"]["normalize"]
+        assert torch.allclose(action_log_std(net), torch.full((22,), -1.6), atol=0.01)  # set, then one batch
+    assert torch.equal(action_log_std(actor_critic_from_checkpoint(load_checkpoint(frozen["checkpoint"]))),
+                       torch.full((22,), -1.6))  # the warm-up batch leaves it alone
+    warm, free = (load_checkpoint(r["checkpoint"])["model"] for r in (frozen, tuned))
+    value_keys = [k for k in student if k.startswith("module.2.")]  # the ActorValueOperator's value head
+    assert value_keys
+    for key, weight in student.items():
+        if "state_independent_scale" in key:
+            continue
+        if key in value_keys:
+            assert not torch.equal(warm[key], weight), key  # the critic learned
+        else:
+            assert torch.equal(warm[key], weight), key  # trunk, normalisation and policy head untouched
+    moved = [k for k in student if k not in value_keys and not torch.equal(free[k], student[k])]
+    assert any(k.startswith("module.0.") for k in moved) and any(k.startswith("module.1.") for k in moved)
+
+
+def test_ppo_bc_term_decays_and_bad_init_is_rejected(tiny_run, demos_dir, tmp_path, capsys):
+    from dexart_lite.rl import ppo
+
+    result = ppo_from_student(tiny_run, tmp_path / "bc", frames=300, critic_warmup=1, bc_coef=2.0, bc_decay=0.5,
+                              bc_demos=str(demos_dir))
+    rows = result["history"]
+    assert [r["bc_weight"] for r in rows] == [0.0, 2.0, 1.0]  # off in the warm-up, then decaying per batch
+    assert rows[0]["loss_bc"] == 0.0 and all(r["loss_bc"] > 0 for r in rows[1:])
+    with pytest.raises(ValueError, match="bc_coef > 0 needs --bc-demos"):
+        ppo_from_student(tiny_run, tmp_path / "x", bc_coef=1.0)
+    with pytest.raises(ValueError, match="is a small laptop network, not small faucet"):
+        ppo_from_student(tiny_run, tmp_path / "y", task="faucet")
+    assert cli.main(["train", "--init-from", str(tmp_path / "missing.pt"), "--out", str(tmp_path / "z")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "checkpoint not found" in err and len(err.splitlines()) == 1
+
+
+def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, monkeypatch, capsys):
+    """The fine-tuning benchmark in fast mode: frame 0 is the student's own success, then PPO's; a second
+    call reads the finished seed back instead of training again."""
+    import importlib.util
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_finetune.py"
+    spec = importlib.util.spec_from_file_location("bench_finetune", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    argv = ["--seeds", "0", "--frames", "200", "--students", str(Path(tiny_run[1]["checkpoint"]).parent),
+            "--runs", str(tmp_path), "--json", str(tmp_path / "ft.json")]
+    result = bench.main(argv)
+    row = result["per_seed"][0]
+    assert [h["critic_warmup"] for h in row["history"]] == [1.0, 0.0] and row["frames"] == 200
+    for key in ("student_seen", "student_unseen", "seen_success", "unseen_success"):
+        assert 0.0 <= result[key] <= 1.0
+    assert (tmp_path / "ft.png").stat().st_size > 0
+    assert bench.main(argv)["per_seed"][0]["history"] == row["history"]
+    assert "finished before, read back" in capsys.readouterr().out
+
+
 def test_time_budget_stops_adding_rounds(tmp_path):
     cfg = tiny_distill_config(tmp_path, max_minutes=1e-4, eval_episodes=0)  # collects its own demonstrations
     result = distill(cfg)
@@ -424,11 +501,13 @@ def test_bench_distill_variants_are_typed_and_named(tmp_path, monkeypatch):
     spec = importlib.util.spec_from_file_location("bench_distill", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    assert bench.parse_overrides(["drop_state=time,palm_velocity", "rounds=8", "ema=0.99", "normalize=false",
-                                  "max_episode_steps=50"]) == \
+    assert parse_overrides(["drop_state=time,palm_velocity", "rounds=8", "ema=0.99", "normalize=false",
+                            "max_episode_steps=50"], DistillConfig) == \
         {"drop_state": "time,palm_velocity", "rounds": 8, "ema": 0.99, "normalize": False, "max_episode_steps": 50}
-    with pytest.raises(ValueError, match="valid choices: task, method"):
-        bench.parse_overrides(["nope=1"])
+    with pytest.raises(ValueError, match="unknown DistillConfig field 'nope'; valid choices: task, method"):
+        parse_overrides(["nope=1"], DistillConfig)
+    with pytest.raises(ValueError, match="FIELD=VALUE"):
+        parse_overrides(["rounds"], DistillConfig)
     with pytest.raises(ValueError, match="needs a --variant"):
         bench.main(["--set", "rounds=2", "--runs", str(tmp_path), "--json", str(tmp_path / "x.json")])
 

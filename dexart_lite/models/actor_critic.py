@@ -146,3 +146,11 @@ def action_log_std(actor_critic: ActorValueOperator) -> torch.Tensor:
     """The state-independent log-std of the action distribution, (action_dim,)."""
     scale = next(m for m in actor_critic.modules() if isinstance(m, AddStateIndependentNormalScale))
     return scale.state_independent_scale.detach()
+
+
+@torch.no_grad()
+def set_action_log_std(actor_critic: ActorValueOperator, value: float) -> None:
+    """Set every entry of the state-independent log-std to ``value`` (e.g. a distilled student, whose
+    MSE training left it at its initial value, before PPO fine-tuning)."""
+    scale = next(m for m in actor_critic.modules() if isinstance(m, AddStateIndependentNormalScale))
+    scale.state_independent_scale.fill_(value)

@@ -38,10 +38,12 @@ import torch
 from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.models.actor_critic import action_log_std, encoder_of, make_actor_critic
+from dexart_lite.imitation.demos import load_demos
+from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, action_log_std, encoder_of, make_actor_critic,
+                                             set_action_log_std)
 from dexart_lite.models.pointnet import ENCODER_SIZES, load_encoder
 from dexart_lite.registration import TASKS
-from dexart_lite.rl.checkpoint import load_checkpoint, save_checkpoint
+from dexart_lite.rl.checkpoint import architecture, load_checkpoint, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.utils import check_choice
 
@@ -84,6 +86,16 @@ class PPOConfig:
     max_minutes: float | None = field(default=None, metadata={"help": "stop training after the batch that crosses this many minutes"})
     resume: bool = field(default=False, metadata={"help": "continue the run in --out from its checkpoint"})
     pretrained: str | None = field(default=None, metadata={"help": "encoder file (save_encoder) loaded strictly into the trunk"})
+    init_from: str | None = field(default=None, metadata={"help": "checkpoint whose whole actor-critic starts the run "
+                                  "(a `dexart-lite distill` student or a PPO run of the same task and encoder), loaded "
+                                  "strictly with its architecture; the action log-std is then set to --init-log-std"})
+    critic_warmup: int = field(default=0, metadata={"help": "first batches in which only the value head learns (the "
+                               "actor, trunk included, is frozen while the critic is still wrong)"})
+    bc_coef: float = field(default=0.0, metadata={"help": "weight of a behaviour-cloning term (MSE of the action mean "
+                           "to the expert labels of --bc-demos) added to the PPO loss; 0: off"})
+    bc_decay: float = field(default=0.8, metadata={"help": "the BC weight is multiplied by this after every batch"})
+    bc_demos: str | None = field(default=None, metadata={"help": "demonstrations folder (`dexart-lite data demos`, "
+                                 "or a distill run's demos/) for the BC term"})
     freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
     eval_episodes: int = field(default=10, metadata={"help": "evaluation episodes per object at the end (0: none)"})
     eval_seed: int = 100
@@ -107,6 +119,12 @@ PRESETS: dict[str, dict] = {
     # Same algorithm, 5x smaller batches (4k frames: 2 workers x 2000 steps, 8 full episodes) and 5 epochs:
     # a PPO update every ~20 s instead of every ~3 min, and half the gradient steps per frame.
     "cpu": {"frames_per_batch": 4000, "epochs": 5},
+    # PPO from a distilled student (`--init-from`): the cpu preset with a small action std (0.2, not 1: the
+    # student's actions are millimetre-precise), a smaller learning rate (3e-5, not 1e-4), 3 batches in which
+    # only the critic learns (the student's value head was never trained), and DexArt's 3 evaluation episodes
+    # per object of the distillation benchmark. Measured in benchmarks/bench_finetune.py.
+    "finetune": {"frames_per_batch": 4000, "epochs": 5, "init_log_std": -1.6, "lr": 3e-5, "critic_warmup": 3,
+                 "eval_episodes": 3},
     # `make demo`: the cpu preset on Laptop for a fixed time budget, then 2 evaluation episodes per
     # object on the seen and the unseen laptops and a GIF; <= 10 minutes in all on 2 cores.
     "demo": {"frames_per_batch": 4000, "epochs": 5, "task": "laptop", "frames": 200_000, "max_minutes": 6.0,
@@ -138,6 +156,15 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError(f"init_log_std must be a finite number, got {cfg.init_log_std}")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
         raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
+    if cfg.init_from and not Path(cfg.init_from).is_file():
+        raise FileNotFoundError(f"--init-from: checkpoint not found: {cfg.init_from}")
+    if cfg.init_from and cfg.pretrained:
+        raise ValueError("--init-from already holds an encoder: drop --pretrained")
+    if cfg.critic_warmup < 0 or not 0.0 < cfg.bc_decay <= 1.0 or not cfg.bc_coef >= 0.0:
+        raise ValueError(f"need critic_warmup >= 0, 0 < bc_decay <= 1 and bc_coef >= 0, got {cfg.critic_warmup}, "
+                         f"{cfg.bc_decay}, {cfg.bc_coef}")
+    if cfg.bc_coef > 0 and not cfg.bc_demos:
+        raise ValueError("bc_coef > 0 needs --bc-demos (a demonstrations folder)")
     if cfg.backend == "ray" and importlib.util.find_spec("ray") is None:
         raise RuntimeError("the ray backend needs Ray, an optional extra: pip install '.[distributed]' "
                            "(or pip install 'dexart_lite[distributed]')")
@@ -203,7 +230,8 @@ class Learner:
     trainable: list
     gae: torch.nn.Module
     value_operator: torch.nn.Module  # V(s) alone, for the bootstrap values GAE needs
-    dims: dict  # num_points, state_dim, action_dim of the env
+    dims: dict  # num_points, state_dim, action_dim of the env; head and normalize of the network
+    bc_data: object = None  # the --bc-demos samples (a memory-mapped TensorDict) or None
 
 
 def open_run(cfg: PPOConfig) -> Path:
@@ -218,15 +246,35 @@ def open_run(cfg: PPOConfig) -> Path:
     return out
 
 
+def initial_weights(cfg: PPOConfig, state_dim: int, action_dim: int) -> tuple[dict, dict | None]:
+    """(``make_actor_critic`` keywords, weights) of ``--init-from``; DexArt's architecture and no weights without it."""
+    if not cfg.init_from:
+        return {}, None
+    payload = load_checkpoint(cfg.init_from)
+    source = payload["config"]
+    if (source["task"], source["encoder"]) != (cfg.task, cfg.encoder):
+        raise ValueError(f"--init-from: {cfg.init_from} is a {source['encoder']} {source['task']} network, "
+                         f"not {cfg.encoder} {cfg.task}")
+    if (payload["dims"]["state_dim"], payload["dims"]["action_dim"]) != (state_dim, action_dim):
+        raise ValueError(f"--init-from: {cfg.init_from} has state/action sizes {payload['dims']['state_dim']}/"
+                         f"{payload['dims']['action_dim']}, this env {state_dim}/{action_dim}")
+    return architecture(payload["dims"]), payload["model"]
+
+
 def build_learner(cfg: PPOConfig, env_fn) -> Learner:
-    """Actor-critic (optionally with a pretrained, frozen PointNet), ClipPPOLoss, Adam and GAE."""
+    """Actor-critic (from scratch, from ``--init-from``, or with a pretrained and optionally frozen PointNet),
+    ClipPPOLoss, Adam and GAE."""
     from torchrl.objectives import ClipPPOLoss
     from torchrl.objectives.value import GAE
 
     probe = env_fn()
     num_points, state_dim, action_dim = env_dims(probe)
     probe.close()
-    actor_critic = make_actor_critic(state_dim, action_dim, cfg.encoder, cfg.init_log_std)
+    arch, weights = initial_weights(cfg, state_dim, action_dim)
+    actor_critic = make_actor_critic(state_dim, action_dim, cfg.encoder, cfg.init_log_std, **arch)
+    if weights is not None:  # strict: every weight of the student, the input normalisation included
+        actor_critic.load_state_dict(weights, strict=True)
+        set_action_log_std(actor_critic, cfg.init_log_std)  # the student's log-std was never trained (MSE)
     if cfg.pretrained:
         load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
     if cfg.freeze_encoder:
@@ -239,8 +287,11 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     trainable = [p for p in loss_module.parameters() if p.requires_grad]
     optimizer = torch.optim.Adam(trainable, lr=cfg.lr, eps=cfg.adam_eps)
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.lmbda, value_network=None, average_gae=False)  # reads the values
-    return Learner(actor_critic, loss_module, optimizer, trainable, gae, actor_critic.get_value_operator(),
-                   {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim})
+    dims = {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim,
+            **{k: list(v) if isinstance(v, tuple) else v for k, v in architecture(arch).items()}}
+    bc_data = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 else None
+    return Learner(actor_critic, loss_module, optimizer, trainable, gae, actor_critic.get_value_operator(), dims,
+                   bc_data)
 
 
 def restore(learner: Learner, cfg: PPOConfig, path: Path) -> tuple[int, int, list]:
@@ -268,21 +319,54 @@ def advantages(data, learner: Learner):
     return data.reshape(-1).select(*BATCH_KEYS)
 
 
-def ppo_update(flat, learner: Learner, cfg: PPOConfig) -> dict:
-    """``cfg.epochs`` passes of clipped-PPO minibatch steps over one batch; the mean of each loss term."""
-    sums, steps = dict.fromkeys(LOSS_KEYS, 0.0), 0
+def bc_weight(cfg: PPOConfig, batch: int) -> float:
+    """Weight of the BC term in batch ``batch`` (0-based): ``bc_coef``, times ``bc_decay`` per batch after
+    the critic warm-up (during the warm-up the actor does not learn at all)."""
+    if cfg.bc_coef == 0 or batch < cfg.critic_warmup:
+        return 0.0
+    return cfg.bc_coef * cfg.bc_decay ** (batch - cfg.critic_warmup)
+
+
+def bc_loss(learner: Learner, size: int, generator: torch.Generator) -> torch.Tensor:
+    """MSE of the policy's action mean to the expert labels, on ``size`` random demonstration samples."""
+    idx = torch.randint(len(learner.bc_data), (size,), generator=generator)
+    samples = learner.bc_data[idx]
+    td = learner.actor_critic.get_policy_operator()(samples.select(POINTS_KEY, STATE_KEY).clone())
+    return torch.nn.functional.mse_loss(td["loc"], samples["expert_action"])
+
+
+def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
+    """``cfg.epochs`` passes of clipped-PPO minibatch steps over one batch; the mean of each loss term.
+
+    ``batch`` (0-based) < ``cfg.critic_warmup``: only the value loss, and only the value head steps (the
+    trunk is shared, so the actor stays exactly as it was). With ``bc_coef`` the BC term (``bc_weight``)
+    is added to every minibatch's loss."""
+    warmup, bc = batch < cfg.critic_warmup, bc_weight(cfg, batch)
+    value_head = set(learner.actor_critic.get_value_head().parameters())
+    generator = torch.Generator().manual_seed(cfg.seed * 100_003 + batch)
+    sums, steps = dict.fromkeys(LOSS_KEYS + ("loss_bc",), 0.0), 0
     for _ in range(cfg.epochs):
         for idx in torch.randperm(flat.numel()).split(cfg.minibatch):
             loss_td = learner.loss_module(flat[idx])
-            loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
+            if warmup:
+                loss = loss_td["loss_critic"]
+            else:
+                loss = loss_td["loss_objective"] + loss_td["loss_critic"] + loss_td["loss_entropy"]
+                if bc > 0:
+                    loss_td["loss_bc"] = bc_loss(learner, len(idx), generator)
+                    loss = loss + bc * loss_td["loss_bc"]
             learner.optimizer.zero_grad()
             loss.backward()
+            if warmup:  # Adam skips parameters without a gradient: the actor does not move at all
+                for p in learner.trainable:
+                    if p not in value_head:
+                        p.grad = None
             torch.nn.utils.clip_grad_norm_(learner.trainable, cfg.max_grad_norm)
             learner.optimizer.step()
-            for key in LOSS_KEYS:
-                sums[key] += float(loss_td[key].detach())
+            for key in sums:
+                sums[key] += float(loss_td[key].detach()) if key in loss_td.keys() else 0.0
             steps += 1
-    return {k: v / steps for k, v in sums.items()}
+    return {**{k: v / steps for k, v in sums.items()}, "critic_warmup": float(warmup), "bc_weight": bc}
 
 
 def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:
@@ -348,7 +432,7 @@ def train(cfg: PPOConfig) -> dict:
             collected = time.perf_counter()
             torch.set_num_threads(learner_threads)
             data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
-            losses = ppo_update(advantages(data, learner), learner, cfg)
+            losses = ppo_update(advantages(data, learner), learner, cfg, batches)
             collector.update_policy_weights_()
             updated = time.perf_counter()
 

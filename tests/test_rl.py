@@ -211,6 +211,22 @@ def test_pretrained_encoder_is_loaded_and_can_be_frozen(tmp_path):
                            make_actor_critic(32, 22).module[0].module.state_mlp[0].weight)
 
 
+def test_critic_learning_rate_and_target_kl_early_stop(tmp_path):
+    """The value head gets its own learning rate; a tiny target KL stops the epochs after the first step."""
+    from functools import partial
+
+    cfg = tiny_config(tmp_path, frames=200, frames_per_batch=200, minibatch=50, epochs=3, workers=0,
+                      eval_episodes=0, lr=1e-4, critic_lr=1e-3, target_kl=1e-9)
+    learner = ppo.build_learner(cfg, partial(make_env, "laptop", num_points=32, max_episode_steps=20))
+    policy_group, value_group = learner.optimizer.param_groups
+    assert (policy_group["lr"], value_group["lr"]) == (1e-4, 1e-3)
+    assert set(value_group["params"]) == set(learner.actor_critic.get_value_head().parameters())
+    rows = ppo.train(cfg)["history"]
+    assert 0 < rows[0]["update_steps_frac"] < 0.5  # 1 or a few of the 12 planned minibatch steps
+    full = ppo.train(dataclasses.replace(cfg, target_kl=None, out=str(tmp_path / "full")))["history"]
+    assert full[0]["update_steps_frac"] == 1.0
+
+
 def test_distributed_backend_on_loopback(tmp_path):
     cfg = tiny_config(tmp_path, frames=400, frames_per_batch=200, workers=2, backend="distributed",
                       eval_episodes=0, tcp_port=free_port())

@@ -89,6 +89,9 @@ class PPOConfig:
     init_from: str | None = field(default=None, metadata={"help": "checkpoint whose whole actor-critic starts the run "
                                   "(a `dexart-lite distill` student or a PPO run of the same task and encoder), loaded "
                                   "strictly with its architecture; the action log-std is then set to --init-log-std"})
+    critic_lr: float | None = field(default=None, metadata={"help": "learning rate of the value head (None: --lr)"})
+    target_kl: float | None = field(default=None, metadata={"help": "stop a batch's epochs once the approximate KL "
+                                    "to the collecting policy exceeds this (SB3's target_kl; None: never)"})
     critic_warmup: int = field(default=0, metadata={"help": "first batches in which only the value head learns (the "
                                "actor, trunk included, is frozen while the critic is still wrong)"})
     bc_coef: float = field(default=0.0, metadata={"help": "weight of a behaviour-cloning term (MSE of the action mean "
@@ -285,7 +288,10 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
                               entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.vf_coef, loss_critic_type="l2",
                               normalize_advantage=cfg.normalize_advantage)
     trainable = [p for p in loss_module.parameters() if p.requires_grad]
-    optimizer = torch.optim.Adam(trainable, lr=cfg.lr, eps=cfg.adam_eps)
+    value_head = set(actor_critic.get_value_head().parameters())
+    groups = [{"params": [p for p in trainable if p not in value_head]},
+              {"params": [p for p in trainable if p in value_head], "lr": cfg.critic_lr or cfg.lr}]
+    optimizer = torch.optim.Adam(groups, lr=cfg.lr, eps=cfg.adam_eps)
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.lmbda, value_network=None, average_gae=False)  # reads the values
     dims = {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim,
             **{k: list(v) if isinstance(v, tuple) else v for k, v in architecture(arch).items()}}
@@ -345,9 +351,12 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
     value_head = set(learner.actor_critic.get_value_head().parameters())
     generator = torch.Generator().manual_seed(cfg.seed * 100_003 + batch)
     sums, steps = dict.fromkeys(LOSS_KEYS + ("loss_bc",), 0.0), 0
+    planned = cfg.epochs * math.ceil(flat.numel() / cfg.minibatch)
     for _ in range(cfg.epochs):
         for idx in torch.randperm(flat.numel()).split(cfg.minibatch):
             loss_td = learner.loss_module(flat[idx])
+            if not warmup and cfg.target_kl is not None and float(loss_td["kl_approx"]) > 1.5 * cfg.target_kl:
+                break  # SB3's early stop: this minibatch already sees a policy too far from the collecting one
             if warmup:
                 loss = loss_td["loss_critic"]
             else:
@@ -366,7 +375,11 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
             for key in sums:
                 sums[key] += float(loss_td[key].detach()) if key in loss_td.keys() else 0.0
             steps += 1
-    return {**{k: v / steps for k, v in sums.items()}, "critic_warmup": float(warmup), "bc_weight": bc}
+        else:
+            continue
+        break
+    return {**{k: v / max(steps, 1) for k, v in sums.items()}, "critic_warmup": float(warmup), "bc_weight": bc,
+            "update_steps_frac": steps / planned}
 
 
 def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:

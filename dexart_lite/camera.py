@@ -76,6 +76,24 @@ class CameraPose:
         return CameraPose.from_matrix(np.add(self.position, offset), self.matrix @ rot)
 
 
+VIEW_RADIUS = 1.0  # m: DexArt's viewpoint sphere, centred 1 m in front of the training camera
+
+
+def viewpoint(pose: CameraPose, d_azimuth: float, d_polar: float, radius: float = VIEW_RADIUS) -> CameraPose:
+    """``pose`` moved on DexArt's viewpoint sphere (``ROBUSTNESS_INIT_CAMERA_CONFIG``): the sphere's
+    centre is the point ``radius`` m ahead of the camera; the camera's spherical angles about that
+    centre (polar from world +z, azimuth from world +x, rad) change by ``d_polar`` and ``d_azimuth``,
+    the distance stays ``radius`` and the camera looks at the centre with world +z up in the image.
+
+    Laptop (camera at (0, 1, 0.5) looking at (0, 0, 0.5)): polar pi/2, azimuth pi/2; ``d_polar`` > 0
+    lowers the camera, ``d_azimuth`` > 0 swings it toward -x (the robot's side)."""
+    centre = np.asarray(pose.position, float) + radius * pose.matrix[:, 2]
+    polar, azimuth = np.pi / 2 - np.arcsin(-pose.matrix[2, 2]), np.arctan2(-pose.matrix[1, 2], -pose.matrix[0, 2])
+    polar, azimuth = polar + d_polar, azimuth + d_azimuth
+    eye = centre + radius * np.array([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
+    return CameraPose.look_at(eye, centre)
+
+
 @dataclass(frozen=True)
 class CameraIntrinsics:
     """A square pinhole camera. DexArt: 64 x 64 px, fovy 69.4 deg, near 0.1 m, far 10 m."""

@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "pretrain": ("dexart_lite.pretrain.train", "pretrain the PointNet encoder"),
     "distill": ("dexart_lite.imitation.distill",
                 "distill a point-cloud student from the scripted expert (BC or DAgger)"),
+    "study": ("dexart_lite.study", "re-measure a DexArt finding: arms x seeds of distilled students, resumable"),
 }
 
 # The exceptions that mean "the user asked for something that cannot be done".

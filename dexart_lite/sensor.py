@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dexart_lite import pointcloud as pc
-from dexart_lite.camera import CameraIntrinsics, CameraPose, DepthCamera
+from dexart_lite.camera import CameraIntrinsics, CameraPose, DepthCamera, viewpoint
 from dexart_lite.sim import Body, BulletSim
 
 
@@ -28,6 +28,9 @@ class SensorConfig:
     camera_noise: bool = False  # per-reset camera pose perturbation
     camera_position_std: float = 0.015  # m (0.5 * 0.03)
     camera_rotation_std: float = 0.05  # rad (0.5 * 0.1)
+    # (azimuth, polar) half-widths (rad) of a random viewpoint on DexArt's viewpoint sphere, drawn at
+    # every reset (``camera.viewpoint``); None: the nominal pose (DexArt's training camera)
+    view_range: tuple[float, float] | None = None
     intrinsics: CameraIntrinsics = field(default_factory=CameraIntrinsics)
 
     @property
@@ -72,8 +75,11 @@ class PointCloudSensor:
         self._imagined_labels = np.full(n_img, pc.HAND, dtype=np.int64)
 
     def reset(self, rng: np.random.Generator) -> None:
-        """Start of an episode: perturb the camera pose if asked to."""
+        """Start of an episode: a random viewpoint and a perturbation of the camera pose, if asked for."""
         pose = self.nominal_pose
+        if self.config.view_range is not None:
+            azimuth, polar = self.config.view_range
+            pose = viewpoint(pose, rng.uniform(-azimuth, azimuth), rng.uniform(-polar, polar))
         if self.config.camera_noise:
             pose = pose.perturbed(rng, self.config.camera_position_std, self.config.camera_rotation_std)
         self.camera.set_pose(pose)

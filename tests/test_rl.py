@@ -227,6 +227,28 @@ def test_critic_learning_rate_and_target_kl_early_stop(tmp_path):
     assert full[0]["update_steps_frac"] == 1.0
 
 
+def test_detached_critic_trains_only_the_value_head(tmp_path):
+    """With critic_detach the value loss moves the value head and nothing of the shared trunk; without it,
+    the trunk gets a gradient from the value loss too (DexArt's shared actor-critic)."""
+    from functools import partial
+
+    for detach in (True, False):
+        cfg = tiny_config(tmp_path, frames=200, frames_per_batch=200, workers=0, eval_episodes=0, critic_detach=detach)
+        learner = ppo.build_learner(cfg, partial(make_env, "laptop", num_points=32, max_episode_steps=20))
+        env = make_env("laptop", num_points=32, max_episode_steps=20, seed=0)
+        with torch.no_grad():
+            data = env.rollout(20, learner.actor_critic)  # the whole actor-critic, as the collectors run it
+        env.close()
+        flat = ppo.advantages(data, learner)
+        learner.optimizer.zero_grad()
+        learner.loss_module(flat)["loss_critic"].backward()
+        trunk = learner.actor_critic.module[0].module
+        value = list(learner.actor_critic.get_value_head().parameters())
+        assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in value)
+        trunk_grad = sum(float(p.grad.abs().sum()) for p in trunk.parameters() if p.grad is not None)
+        assert (trunk_grad == 0.0) if detach else (trunk_grad > 0.0)
+
+
 def test_distributed_backend_on_loopback(tmp_path):
     cfg = tiny_config(tmp_path, frames=400, frames_per_batch=200, workers=2, backend="distributed",
                       eval_episodes=0, tcp_port=free_port())

@@ -25,7 +25,7 @@ from gymnasium import spaces
 from dexart_lite import objects as objects_lib
 from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK, ArticulatedObjects
-from dexart_lite.camera import CameraPose
+from dexart_lite.camera import CameraPose, viewpoint
 from dexart_lite.objects import ObjectInfo
 from dexart_lite.robot import ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, Robot, RobotState
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
@@ -88,6 +88,8 @@ class DexArtEnv(gym.Env):
     split: "seen", "unseen" or "seen_half"; object_names: explicit list instead of a split;
     camera: override of the camera pose, a ``CameraPose`` or ``{"eye": [...], "target": [...]}``;
     num_points, imagination, point_noise, camera_noise: point-cloud settings (``SensorConfig``);
+    view_range: ``(azimuth, polar)`` half-widths in degrees of a random camera viewpoint drawn at every
+    reset on DexArt's viewpoint sphere (``camera.viewpoint``); None (default): the fixed camera;
     randomize: DexArt's object pose randomisation; dt, frame_skip, solver_iterations: physics;
     render_mode: None or "rgb_array".
     """
@@ -107,7 +109,7 @@ class DexArtEnv(gym.Env):
 
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
-                 randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
+                 view_range=None, randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
                  render_mode: str | None = None, **unknown):
         if unknown:
             valid = [n for n in inspect.signature(DexArtEnv.__init__).parameters if n not in ("self", "unknown")]
@@ -130,7 +132,16 @@ class DexArtEnv(gym.Env):
                                             rgba=TABLE_RGBA)]
         if self.PEDESTAL is not None:
             self.scenery.append(self.sim.create_box("pedestal", self.PEDESTAL[1], self.PEDESTAL[0], rgba=PEDESTAL_RGBA))
-        if not self._scenery_can_occlude(camera_pose):
+        if view_range is not None:
+            try:
+                view_range = tuple(float(np.deg2rad(float(v))) for v in view_range)
+            except (TypeError, ValueError):
+                view_range = ()
+            if len(view_range) != 2 or not all(np.isfinite(v) and v >= 0 for v in view_range):
+                raise ValueError("view_range must be (azimuth, polar) half-widths in degrees, both >= 0")
+        corners = [camera_pose] if view_range is None else \
+            [viewpoint(camera_pose, a, p) for a in (-view_range[0], view_range[0]) for p in (-view_range[1], view_range[1])]
+        if not any(self._scenery_can_occlude(pose) for pose in corners):
             self._show_scenery(False)  # cropped away and unable to hide anything: skip its render cost
         self.robot = Robot(self.sim, self.ROBOT_BASE, control_dt=self.control_dt)
         self.labels = pc.LabelTable()
@@ -138,7 +149,7 @@ class DexArtEnv(gym.Env):
             self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
         self.objects = ArticulatedObjects(self.sim, infos, self.labels)
         self.sensor_config = SensorConfig(num_points=num_points, imagination=imagination, point_noise=point_noise,
-                                          camera_noise=camera_noise)
+                                          camera_noise=camera_noise, view_range=view_range)
         self.sensor = PointCloudSensor(self.sim, self.sensor_config, camera_pose, self.CROP,
                                        self.ROBOT_BASE, self.labels, self.robot.body)
         self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}

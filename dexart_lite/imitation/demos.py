@@ -128,9 +128,12 @@ def package_versions() -> dict[str, str]:
 
 def collect_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int, out: str | Path,
                   num_points: int = 512, max_episode_steps: int | None = None, object_names: list[str] | None = None,
-                  progress: bool = True, camera_noise: bool = True) -> dict:
+                  progress: bool = True, camera_noise: bool = True, imagination: bool = True,
+                  view_range: tuple[float, float] | None = None) -> dict:
     """Run the noisy expert on every object of ``split`` and write ``out`` (see the module docstring);
-    returns the manifest. ``camera_noise``: DexArt's per-reset camera perturbation (on, as in training)."""
+    returns the manifest. ``camera_noise``: DexArt's per-reset camera perturbation (on, as in training);
+    ``imagination``: the 96 imagined hand points in the cloud (on, as in DexArt); ``view_range``: random
+    camera viewpoints, (azimuth, polar) half-widths in degrees (the env's keyword; None: fixed camera)."""
     from dexart_lite.envs import make
     from dexart_lite.experts import ScriptedPolicy
 
@@ -151,7 +154,7 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
 
     start = time.perf_counter()
     env = make(task, split=split, object_names=names, num_points=num_points, point_noise=True, camera_noise=camera_noise,
-               max_episode_steps=max_episode_steps)
+               max_episode_steps=max_episode_steps, imagination=imagination, view_range=view_range)
     expert = noisy(ScriptedPolicy(env), noise, np.random.default_rng([seed, 1]))
     recorder = Recorder(expert, names)
     episodes = episode_list(names, episodes_per_object, np.random.default_rng([seed, 0]))
@@ -163,7 +166,9 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
     summary = per_object_summary(results)
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "task": task, "split": split, "objects": names,
-        "seed": seed, "noise": noise, "camera_noise": camera_noise, "episodes_per_object": episodes_per_object, "num_points": num_points,
+        "seed": seed, "noise": noise, "camera_noise": camera_noise, "imagination": imagination,
+        "view_range": list(view_range) if view_range is not None else None,
+        "episodes_per_object": episodes_per_object, "num_points": num_points,
         "cloud_points": samples["point_cloud"].shape[1], "state_dim": samples["observation"].shape[1],
         "max_episode_steps": max_episode_steps, "samples": samples.batch_size[0],
         "expert_success_rate": summary["success_rate"], "expert_mean_max_stage": summary["mean_max_stage"],

@@ -46,7 +46,7 @@ from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, l
 from dexart_lite.imitation.report import plot_rounds, write_report
 from dexart_lite.models.actor_critic import (HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic,
                                              trunk_of)
-from dexart_lite.models.pointnet import ENCODER_SIZES, save_encoder
+from dexart_lite.models.pointnet import ENCODER_SIZES, load_encoder, save_encoder
 from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
@@ -88,6 +88,8 @@ class DistillConfig:
     epochs_per_round: int = field(default=6, metadata={"help": "epochs over the aggregate buffer after each round"})
     beta: float = field(default=0.5, metadata={"help": "DAgger: probability of executing the expert's action, round 1"})
     beta_decay: float = field(default=0.6, metadata={"help": "DAgger: beta is multiplied by this after each round"})
+    student_noise: float = field(default=0.0, metadata={"help": "DAgger: std of Gaussian noise on the student's "
+                                 "executed actions (its labels stay the expert's clean actions); 0: none"})
     lr: float = field(default=1e-3, metadata={"help": "Adam learning rate"})
     ema: float = field(default=0.995, metadata={"help": "decay of the exponential moving average of the weights "
                        "that acts and is saved (0: the trained weights themselves)"})
@@ -101,6 +103,10 @@ class DistillConfig:
     head: str = field(default="256,256", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
     normalize: bool = field(default=True, metadata={"help": "fixed input normalisation in the trunk, set from the "
                             "demonstrations (DexArt: none)"})
+    normalize_points: bool = field(default=True, metadata={"help": "with --normalize, also centre and scale the "
+                                   "points (off: raw metres, as a pretrained PointNet saw them)"})
+    pretrained: str | None = field(default=None, metadata={"help": "encoder file (`dexart-lite pretrain`'s "
+                                   "encoder.pt) loaded strictly into the student's PointNet before BC"})
     drop_state: str = field(default="auto", metadata={"help": "state entries the student does not see (needs "
                             "--normalize; '' for none; auto: DROP_STATE of the task): comma-separated from time, "
                             "palm_velocity"})
@@ -108,6 +114,11 @@ class DistillConfig:
                               "to the 16 hand dimensions"})
     max_samples: int = field(default=200_000, metadata={"help": "aggregate buffer size; the oldest samples go first"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
+    imagination: bool = field(default=True, metadata={"help": "append the 96 imagined hand points to the cloud "
+                              "(DexArt: on)"})
+    view_range: str = field(default="", metadata={"help": "random camera viewpoints in collection: azimuth,polar "
+                            "half-widths in degrees on DexArt's viewpoint sphere, e.g. 60,20 ('': DexArt's fixed "
+                            "camera); evaluation always uses the fixed camera"})
     camera_noise: bool = field(default=True, metadata={"help": "DexArt's per-reset camera perturbation (1.5 cm, "
                                "0.05 rad std) in collection and evaluation"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250)"})
@@ -122,10 +133,23 @@ class DistillConfig:
 
     def env_kwargs(self) -> dict:
         """Keyword arguments of the env shared by collection, evaluation and the GIF."""
-        kwargs = {"num_points": self.num_points, "point_noise": True, "camera_noise": self.camera_noise}
+        kwargs = {"num_points": self.num_points, "point_noise": True, "camera_noise": self.camera_noise,
+                  "imagination": self.imagination}
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
+
+    def view_range_degrees(self) -> tuple[float, float] | None:
+        """``view_range`` as (azimuth, polar) degrees, or None for the fixed camera."""
+        if not self.view_range.strip():
+            return None
+        try:
+            values = tuple(float(v) for v in self.view_range.split(","))
+        except ValueError:
+            values = ()
+        if len(values) != 2 or not all(math.isfinite(v) and v >= 0 for v in values):
+            raise ValueError(f"view_range must be two degrees >= 0 such as 60,20 (azimuth, polar); got {self.view_range!r}")
+        return values
 
     def dropped_state(self, state_dim: int) -> list[int]:
         """Indices of ``drop_state`` in the env's state vector (qpos 22, palm velocity 6, palm position 3,
@@ -172,6 +196,8 @@ def validate(cfg: DistillConfig) -> None:
             raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
     if not 0.0 <= cfg.ema < 1.0:
         raise ValueError(f"ema must be in [0, 1), got {cfg.ema}")
+    if not (math.isfinite(cfg.student_noise) and cfg.student_noise >= 0):
+        raise ValueError(f"student_noise must be a finite std >= 0, got {cfg.student_noise}")
     for name in ("beta", "beta_decay"):
         if not 0.0 <= getattr(cfg, name) <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {getattr(cfg, name)}")
@@ -187,9 +213,12 @@ def validate(cfg: DistillConfig) -> None:
     if cfg.max_minutes is not None and not cfg.max_minutes > 0:
         raise ValueError(f"max_minutes must be > 0, got {cfg.max_minutes}")
     cfg.head_widths()
+    cfg.view_range_degrees()
     cfg.dropped_state(33)
     if not (math.isfinite(cfg.arm_weight) and cfg.arm_weight > 0):
         raise ValueError(f"arm_weight must be a finite weight > 0, got {cfg.arm_weight}")
+    if cfg.pretrained and not Path(cfg.pretrained).is_file():
+        raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
     cfg.object_names()
 
 
@@ -247,8 +276,8 @@ class Mixture:
     """DAgger's executed policy: the expert labels every step (``label``); its action is executed with
     probability ``beta``, the student's otherwise. ``rng``: a ``numpy.random.Generator``."""
 
-    def __init__(self, expert: Policy, student: Policy, beta: float, rng: np.random.Generator):
-        self.expert, self.student, self.beta, self.rng = expert, student, beta, rng
+    def __init__(self, expert: Policy, student: Policy, beta: float, rng: np.random.Generator, noise: float = 0.0):
+        self.expert, self.student, self.beta, self.rng, self.noise = expert, student, beta, rng, noise
         self.label: np.ndarray | None = None
         self.privileged: np.ndarray | None = None
         self.expert_steps = self.steps = 0
@@ -265,13 +294,16 @@ class Mixture:
         if self.rng.random() < self.beta:
             self.expert_steps += 1
             return np.clip(self.label, -1.0, 1.0)
-        return np.clip(np.asarray(self.student(obs), dtype=np.float32), -1.0, 1.0)
+        action = np.asarray(self.student(obs), dtype=np.float32)
+        if self.noise > 0:  # off the student's own path, so the expert also labels how to get back onto it
+            action = action + self.noise * self.rng.standard_normal(action.shape).astype(np.float32)
+        return np.clip(action, -1.0, 1.0)
 
 
 def collect_dagger(env, expert: Policy, student: Policy, episodes: list[tuple[int, str]], beta: float,
-                   rng: np.random.Generator, objects: list[str], first_episode: int = 0):
+                   rng: np.random.Generator, objects: list[str], first_episode: int = 0, student_noise: float = 0.0):
     """One DAgger round: ``(samples, episode results, share of steps the expert drove)``."""
-    mixture = Mixture(expert, student, beta, rng)
+    mixture = Mixture(expert, student, beta, rng, student_noise)
     recorder = Recorder(mixture, objects, first_episode)
     with torch.no_grad(), torch_threads(1):  # acting one step at a time: fastest on one thread
         results = run_episodes(mixture, env, episodes, on_step=recorder)
@@ -307,19 +339,24 @@ def distill(cfg: DistillConfig) -> dict:
         # ---- 1. demonstrations (the expert drives, with noise)
         if not cfg.demos:
             collect_demos(cfg.task, cfg.split, cfg.demo_episodes_per_object, cfg.demo_noise, cfg.seed, demo_path,
-                          cfg.num_points, cfg.max_episode_steps, names, cfg.progress, cfg.camera_noise)
+                          cfg.num_points, cfg.max_episode_steps, names, cfg.progress, cfg.camera_noise,
+                          cfg.imagination, cfg.view_range_degrees())
         manifest = read_manifest(demo_path)
         demos = load_demos(demo_path)
 
-        env = make(cfg.task, split=cfg.split, object_names=names, **cfg.env_kwargs())
+        # collection (DAgger) env: evaluation's settings, plus random viewpoints if asked for
+        env = make(cfg.task, split=cfg.split, object_names=names, view_range=cfg.view_range_degrees(),
+                   **cfg.env_kwargs())
         dims = {"num_points": env.observation_space["point_cloud"].shape[0],
                 "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0],
                 "head": cfg.head_widths(), "normalize": cfg.normalize}
         actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std,
                                          **architecture(dims))
         if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
-            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY],
-                                                     cfg.dropped_state(dims["state_dim"]))
+            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY] if cfg.normalize_points
+                                                     else None, cfg.dropped_state(dims["state_dim"]))
+        if cfg.pretrained:  # strict: a size or key mismatch is an error
+            load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
         # The student that acts and is saved: an exponential moving average of the trained weights (a
         # closed-loop policy is sensitive to the last few gradient steps; the average is steadier).
         ema = AveragedModel(actor_critic, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema), use_buffers=True) \
@@ -377,7 +414,7 @@ def distill(cfg: DistillConfig) -> dict:
                 episodes = episode_list(names, cfg.episodes_per_round, np.random.default_rng([cfg.seed, 2, r]))
                 samples, results, share = collect_dagger(env, scripted, student, episodes, beta,
                                                          np.random.default_rng([cfg.seed, 3, r]), index_names,
-                                                         episodes_done)
+                                                         episodes_done, cfg.student_noise)
                 episodes_done += len(episodes)
                 frames["student"] += samples.batch_size[0]
                 buffer.extend(samples)
@@ -413,6 +450,11 @@ def distill(cfg: DistillConfig) -> dict:
 
 def check_demos(manifest: dict, cfg: DistillConfig) -> None:
     """``ValueError`` unless the demonstrations of ``manifest`` fit the run of ``cfg``."""
+    ours = cfg.view_range_degrees()
+    for key, theirs, mine in (("imagination", manifest.get("imagination", True), cfg.imagination),
+                              ("view_range", manifest.get("view_range"), list(ours) if ours else None)):
+        if theirs != mine:
+            raise ValueError(f"--demos {cfg.demos} has {key} {theirs!r}, this run has {mine!r}")
     for key in ("task", "num_points"):
         if manifest[key] != getattr(cfg, key):
             raise ValueError(f"--demos {cfg.demos} has {key} {manifest[key]!r}, this run has {getattr(cfg, key)!r}")

@@ -61,9 +61,10 @@ class Trunk(nn.Module):
             self.register_buffer("state_mask", torch.ones(state_dim))  # 0: an entry the network never sees
 
     @torch.no_grad()
-    def set_normalization(self, states: torch.Tensor, points: torch.Tensor, drop: list[int] | None = None) -> None:
-        """Centre and scale from samples: ``states`` (S, D), ``points`` (S, N, 3) (m). ``drop``: state
-        entries zeroed after normalisation (e.g. t / horizon, which a student can use as a clock)."""
+    def set_normalization(self, states: torch.Tensor, points: torch.Tensor | None, drop: list[int] | None = None) -> None:
+        """Centre and scale from samples: ``states`` (S, D), ``points`` (S, N, 3) (m; None: the points stay
+        raw, e.g. for a pretrained PointNet that learnt on raw metres). ``drop``: state entries zeroed
+        after normalisation (e.g. t / horizon, which a student can use as a clock)."""
         if not self.normalize:
             raise ValueError("this trunk was built with normalize=False")
         self.state_loc.copy_(states.mean(0))
@@ -71,6 +72,10 @@ class Trunk(nn.Module):
         self.state_mask.fill_(1.0)
         if drop:
             self.state_mask[list(drop)] = 0.0
+        if points is None:
+            self.point_loc.zero_()
+            self.point_scale.fill_(1.0)
+            return
         flat = points.reshape(-1, 3)
         self.point_loc.copy_(flat.mean(0))
         self.point_scale.copy_(flat.std(0).mean().clamp_min(1e-3).reshape(1))

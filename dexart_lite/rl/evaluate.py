@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     actor_critic = actor_critic_from_checkpoint(payload, args.ckpt)
     cfg = payload["config"]
     check_choice("task", cfg["task"], TASKS)
-    env_kwargs = {"num_points": cfg["num_points"]}
+    env_kwargs = {"num_points": cfg["num_points"], "imagination": cfg.get("imagination", True)}
     if cfg.get("max_episode_steps"):
         env_kwargs["max_episode_steps"] = cfg["max_episode_steps"]
     result = evaluate(actor_critic, cfg["task"], args.split, args.episodes_per_object, args.seed, env_kwargs)

@@ -92,6 +92,9 @@ class PPOConfig:
     critic_lr: float | None = field(default=None, metadata={"help": "learning rate of the value head (None: --lr)"})
     target_kl: float | None = field(default=None, metadata={"help": "stop a batch's epochs once the approximate KL "
                                     "to the collecting policy exceeds this (SB3's target_kl; None: never)"})
+    critic_detach: bool = field(default=False, metadata={"help": "the value loss trains the value head only: its "
+                                "gradient does not reach the shared trunk (DexArt/SB3: it does). A critic that is "
+                                "still wrong then cannot reshape the features a distilled actor relies on"})
     critic_warmup: int = field(default=0, metadata={"help": "first batches in which only the value head learns (the "
                                "actor, trunk included, is frozen while the critic is still wrong)"})
     bc_coef: float = field(default=0.0, metadata={"help": "weight of a behaviour-cloning term (MSE of the action mean "
@@ -264,9 +267,21 @@ def initial_weights(cfg: PPOConfig, state_dim: int, action_dim: int) -> tuple[di
     return architecture(payload["dims"]), payload["model"]
 
 
+class DetachedInput(torch.nn.Module):
+    """``net`` applied to a detached input: its own parameters learn, nothing upstream does."""
+
+    def __init__(self, net: torch.nn.Module):
+        super().__init__()
+        self.net = net
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x.detach())
+
+
 def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     """Actor-critic (from scratch, from ``--init-from``, or with a pretrained and optionally frozen PointNet),
     ClipPPOLoss, Adam and GAE."""
+    from torchrl.modules import ValueOperator
     from torchrl.objectives import ClipPPOLoss
     from torchrl.objectives.value import GAE
 
@@ -282,9 +297,12 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
         load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
     if cfg.freeze_encoder:
         encoder_of(actor_critic).requires_grad_(False)
-    # the critic is the value HEAD, so the trunk runs once per minibatch
+    # the critic is the value HEAD, so the trunk runs once per minibatch (it reads the actor's "hidden")
+    critic = actor_critic.get_value_head()
+    if cfg.critic_detach:  # same value MLP and weights, fed a detached copy of the trunk's features
+        critic = ValueOperator(DetachedInput(critic.module), in_keys=list(critic.in_keys))
     loss_module = ClipPPOLoss(actor_network=actor_critic.get_policy_operator(),
-                              critic_network=actor_critic.get_value_head(), clip_epsilon=cfg.clip_epsilon,
+                              critic_network=critic, clip_epsilon=cfg.clip_epsilon,
                               entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.vf_coef, loss_critic_type="l2",
                               normalize_advantage=cfg.normalize_advantage)
     trainable = [p for p in loss_module.parameters() if p.requires_grad]

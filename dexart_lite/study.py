@@ -1,0 +1,442 @@
+"""Studies: DexArt's findings re-measured on distilled point-cloud students, arms x seeds, resumable.
+
+    dexart-lite study objects --task laptop --seeds 3 --out runs/studies/laptop_objects
+    dexart-lite study encoder --task faucet --seeds 3 --out runs/studies/faucet_encoder
+    dexart-lite study imagination --task laptop --arms without --seeds 1 --set rounds=2 --out runs/try
+
+A study compares *arms* (settings of ``DistillConfig``) over seeds. Every arm and seed is one
+``dexart-lite distill`` run (expert demonstrations, BC, DAgger rounds, evaluation with deterministic
+actions on every seen and unseen object) in ``OUT/<arm>/seed<k>``; a finished one (its ``run.json``
+with the same settings) is read back, so an interrupted study resumes where it stopped. All arms of a
+study share the evaluation (episodes per object, evaluation seeds) and the data budget: the same
+number of expert and DAgger episodes in total, whatever the number of training objects.
+
+Writes ``OUT/study.json`` (arms, per-seed results, mean +- std, command, machine, wall time),
+``OUT/study.png`` (success per arm, seen and unseen, every seed as a dot) and ``OUT/study.md`` (a
+markdown table). These are students of a privileged scripted expert (imitation), not PPO: the
+studies ask DexArt's questions of the learner that works on a CPU, and say so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dexart_lite import objects as objects_lib
+from dexart_lite.registration import TASKS
+from dexart_lite.utils import check_choice, fast_mode, machine_info, parse_overrides, write_json
+
+RESULT = "run.json"  # in each arm/seed folder: the settings and the results of a finished run
+
+
+@dataclass(frozen=True)
+class Study:
+    """One question: its arms (``DistillConfig`` fields each arm sets) and the paper's answer."""
+
+    name: str
+    question: str
+    paper: str  # DexArt's claim and numbers, for the report
+    arms: dict[str, dict]
+    viewpoints: bool = False  # also evaluate every student on the camera grid (VIEW_AZIMUTHS x VIEW_POLARS)
+    common: dict = dataclasses.field(default_factory=dict)  # fields every arm of the study sets
+    pretraining: bool = False  # first pretrain one encoder per method (``prepare_pretrained``)
+
+
+STUDIES: dict[str, Study] = {
+    "objects": Study(
+        "objects", "Do more training objects give better success on unseen objects?",
+        "DexArt (Sec. 5): policies trained on more objects generalise better to unseen objects",
+        {"seen_half": {"split": "seen_half"}, "seen": {"split": "seen"}}),
+    "encoder": Study(
+        "encoder", "Which PointNet size learns and generalises best?",
+        "DexArt (Sec. 5.2): the small PointNet (one hidden layer) is the most sample-efficient and generalises "
+        "best; larger encoders do worse",
+        {"small": {"encoder": "small"}, "medium": {"encoder": "medium"}, "large": {"encoder": "large"}}),
+    "imagination": Study(
+        "imagination", "Do the 96 imagined hand points help?",
+        "not a DexArt study (DexPoint, Qin et al. 2022, introduced them); DexArt always uses them",
+        {"with": {"imagination": True}, "without": {"imagination": False}}),
+    "pretrain": Study(
+        "pretrain", "Does a pretrained PointNet make a better student, and which pretraining?",
+        "DexArt (Table 2): segmentation pretraining on DAM helps most (e.g. Laptop 0.81 / 0.41 without "
+        "pretraining -> 0.92 / 0.60 with it, seen / unseen); classification, reconstruction and SimSiam help less",
+        {"scratch": {}, **{m: {"pretrained": "{out}/pretrained/" + m + "/encoder.pt"} for m in
+                           ("seg", "cls", "recon", "simsiam")}},
+        # the points stay raw in every arm (the pretrained PointNets learnt on raw metres); the encoder is
+        # fine-tuned, as in DexArt
+        common={"normalize_points": False}, pretraining=True),
+    "viewpoint": Study(
+        "viewpoint", "Does the point-cloud policy keep working when the camera moves?",
+        "DexArt (Sec. 5.3, Fig. 9, Laptop): point-cloud policies keep most of their success over 35 camera poses "
+        "(azimuth -60..60 deg, polar -20..20 deg) while an image policy collapses away from the training view",
+        {"fixed": {"view_range": ""}, "random": {"view_range": "60,20"}}, viewpoints=True),
+}
+
+# DexArt's robustness grid (``ROBUSTNESS_INIT_CAMERA_CONFIG``): 7 azimuth x 5 polar offsets (degrees) of
+# the camera on a sphere of radius 1 m around the point it looks at (``camera.viewpoint``).
+VIEW_AZIMUTHS = (-60, -40, -20, 0, 20, 40, 60)
+VIEW_POLARS = (-20, -10, 0, 10, 20)
+VIEWPOINTS = "viewpoints.json"  # in each arm/seed folder of a viewpoint study
+
+
+def study_of(name: str) -> Study:
+    check_choice("study", name, STUDIES)
+    return STUDIES[name]
+
+
+def arm_config(study: Study, arm: str, task: str, seed: int, out: Path, overrides: dict | None = None):
+    """The ``DistillConfig`` of one arm and seed. The study's data budget: an arm that trains on fewer
+    objects gets proportionally more episodes per object (rounded), so every arm collects about as many
+    expert and student episodes as the full seen split with the defaults."""
+    from dexart_lite.imitation.distill import DistillConfig
+
+    check_choice(f"arm of the {study.name} study", arm, study.arms)
+    arm_fields = {k: v.format(out=out) if isinstance(v, str) else v for k, v in study.arms[arm].items()}
+    fields = {**(overrides or {}), **study.common, **arm_fields}
+    cfg = DistillConfig(task=task, seed=seed, out=str(out / arm / f"seed{seed}"), progress=False, **fields)
+    if not cfg.objects:
+        full = len(objects_lib.list_objects(task, "seen"))
+        ours = len(cfg.object_names())
+        scale = full / ours
+        cfg = dataclasses.replace(cfg, demo_episodes_per_object=max(1, round(cfg.demo_episodes_per_object * scale)),
+                                  episodes_per_round=max(1, round(cfg.episodes_per_round * scale)))
+    return cfg
+
+
+def parameters(cfg) -> int:
+    """Trainable parameters of the student of ``cfg`` (trunk and both heads)."""
+    from dexart_lite.models.actor_critic import make_actor_critic
+
+    net = make_actor_critic(33 if cfg.task == "bucket" else 32, 22, cfg.encoder, head=tuple(cfg.head_widths()),
+                            normalize=cfg.normalize)
+    return sum(p.numel() for p in net.parameters())
+
+
+def run_arm(cfg) -> dict:
+    """One distillation run, or the read-back of a finished one with the same settings (``run.json``)."""
+    from dexart_lite.imitation.distill import distill
+
+    out = Path(cfg.out)
+    record = out / RESULT
+    settings = dataclasses.asdict(cfg)
+    if record.exists():
+        done = json.loads(record.read_text())
+        if done["config"] == settings:
+            return {**done, "resumed": True}
+        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
+    if out.exists():  # an interrupted run: start it again from scratch
+        import shutil
+
+        shutil.rmtree(out)
+    result = distill(cfg)
+    keep = {k: result[k] for k in ("seen_success", "unseen_success", "expert_frames", "student_frames", "wall_time_s")}
+    keep["mean_max_stage"] = {split: r["mean_max_stage"] for split, r in result["eval"].items()}
+    keep["per_object"] = {split: {name: o["success_rate"] for name, o in r["objects"].items()}
+                          for split, r in result["eval"].items()}
+    keep["history"] = result["history"]
+    keep["config"] = settings
+    write_json(record, keep)
+    return {**keep, "resumed": False}
+
+
+# Pretraining for the pretrain study (``prepare_pretrained``): DexArt's recipes with CPU-sized epochs
+# (DexArt: seg 100, recon 50, SimSiam 30 epochs over 9,000 clouds per object; cls has no released recipe).
+PRETRAIN_EPOCHS = {"seg": 10, "cls": 5, "recon": 10, "simsiam": 10}
+PRETRAIN_SAMPLES = 1000  # DAM clouds per object (seen: train + val, unseen: test)
+CLASS_WEIGHTS = {"bucket": "3,1,1,1"}  # DexArt's segmentation weights (the bail up-weighted)
+
+
+def prepare_pretrained(task: str, out: Path, seed: int = 0, progress: bool = True) -> dict:
+    """The encoders of the pretrain study in ``out/pretrained/<method>/encoder.pt``: DAM clouds of the
+    task (``out/pretrained/dam``: random actions, random joint angles, seen and unseen objects) for seg,
+    recon and SimSiam; the objects-only clouds of all four categories (``out/pretrained/objects``) for
+    cls. Steps whose output exists are skipped. Returns ``{method: metrics}`` (val = seen objects,
+    test = unseen ones), e.g. seg's mIoU."""
+    from dexart_lite.pretrain import data as datasets
+    from dexart_lite.pretrain import train as pretrain
+
+    root = out / "pretrained"
+    fast = fast_mode()
+    samples = 20 if fast else PRETRAIN_SAMPLES
+    dam, objects = root / "dam", root / "objects"
+    if not (dam / "unseen" / datasets.MANIFEST).exists():
+        datasets.generate_dam(datasets.DamConfig(task=task, split="all", samples_per_object=samples, out=str(dam),
+                                                 seed=seed, progress=progress,
+                                                 objects=_first_objects(task) if fast else None))
+    if not (objects / "unseen" / datasets.MANIFEST).exists():
+        datasets.generate_objects(datasets.ObjectsConfig(samples_per_object=10 if fast else 250, out=str(objects),
+                                                         seed=seed, progress=progress,
+                                                         objects=_first_objects() if fast else None))
+    metrics = {}
+    for method, epochs in PRETRAIN_EPOCHS.items():
+        run = root / method
+        if not (run / "metrics.json").exists():
+            pretrain.train(pretrain.PretrainConfig(method=method, data=str(objects if method == "cls" else dam),
+                                                   out=str(run), epochs=1 if fast else epochs, seed=seed,
+                                                   class_weights=CLASS_WEIGHTS.get(task) if method == "seg" else None,
+                                                   progress=progress))
+        record = json.loads((run / "metrics.json").read_text())
+        metrics[method] = {"data": "objects-only, 4 categories" if method == "cls" else f"DAM, {task}",
+                           "epochs": record["epochs"], "train_clouds": record["train_clouds"],
+                           "val": record["val"], "test": record.get("test"), "wall_seconds": record["wall_seconds"]}
+    return metrics
+
+
+def _first_objects(task: str | None = None) -> str:
+    """Fast mode: one seen and one unseen object of ``task`` (or of every category)."""
+    tasks = [task] if task else list(objects_lib.CATEGORIES)
+    return ",".join(objects_lib.list_objects(t, s)[0].name for t in tasks for s in ("seen", "unseen"))
+
+
+def nominal_camera(task: str):
+    """The task's training camera (``CameraPose``)."""
+    import importlib
+
+    check_choice("task", task, TASKS)
+    return getattr(importlib.import_module(f"dexart_lite.envs.{task}"), f"{task.capitalize()}Env").CAMERA
+
+
+def camera_grid(task: str) -> list[tuple[int, int, object]]:
+    """``(d_azimuth, d_polar, CameraPose)`` for the 35 poses of DexArt's grid around the task's camera."""
+    from dexart_lite.camera import viewpoint
+
+    base = nominal_camera(task)
+    return [(a, p, viewpoint(base, np.deg2rad(a), np.deg2rad(p))) for p in VIEW_POLARS for a in VIEW_AZIMUTHS]
+
+
+def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unseen")) -> dict:
+    """Success of the student in ``cfg.out`` under every camera of ``camera_grid``: ``{split: 5 x 7 list}``
+    (rows polar, columns azimuth), deterministic actions, the run's evaluation seed and env settings
+    (camera perturbation and point noise included). Written to ``cfg.out/viewpoints.json``; read back
+    if it exists with the same settings."""
+    from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+    from dexart_lite.rl.evaluate import evaluate
+
+    out = Path(cfg.out)
+    path = out / VIEWPOINTS
+    settings = {"episodes_per_object": episodes_per_object, "splits": list(splits), "azimuths": list(VIEW_AZIMUTHS),
+                "polars": list(VIEW_POLARS), "eval_seed": cfg.eval_seed}
+    if path.exists():
+        done = json.loads(path.read_text())
+        if done["settings"] == settings:
+            return done
+    payload = load_checkpoint(out / "checkpoint.pt")
+    student = actor_critic_from_checkpoint(payload, out / "checkpoint.pt")
+    start = time.perf_counter()
+    grid = {split: np.zeros((len(VIEW_POLARS), len(VIEW_AZIMUTHS))) for split in splits}
+    for a, p, pose in camera_grid(cfg.task):
+        for split in splits:
+            res = evaluate(student, cfg.task, split, episodes_per_object, cfg.eval_seed,
+                           {**cfg.env_kwargs(), "camera": pose})
+            grid[split][VIEW_POLARS.index(p), VIEW_AZIMUTHS.index(a)] = res["success_rate"]
+    result = {"settings": settings, "success": {split: g.tolist() for split, g in grid.items()},
+              "wall_time_s": round(time.perf_counter() - start, 1)}
+    write_json(path, result)
+    return result
+
+
+def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: list[str] | None = None,
+              overrides: dict | None = None, progress: bool = True, argv: list[str] | None = None) -> dict:
+    """Run (or resume) every arm x seed of study ``name`` on ``task``; write and return ``study.json``."""
+    from tqdm import tqdm
+
+    study = study_of(name)
+    check_choice("task", task, TASKS)
+    arms = list(study.arms) if arms is None else list(arms)
+    for arm in arms:
+        check_choice(f"arm of the {name} study", arm, study.arms)
+    if not seeds:
+        raise ValueError("a study needs at least one seed")
+    overrides = dict(overrides or {})
+    if fast_mode():  # a smoke run of the runner itself, not evidence
+        overrides.update(num_points=32, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
+                         episodes_per_round=1, epochs=1, epochs_per_round=1, eval_episodes=1, threads=1)
+    out = Path(out)
+    start = time.perf_counter()
+    pretraining = prepare_pretrained(task, out, progress=progress) if study.pretraining else None
+    configs = [(arm, seed, arm_config(study, arm, task, seed, out, overrides)) for arm in arms for seed in seeds]
+    runs: dict[str, list[dict]] = {arm: [] for arm in arms}
+    with tqdm(configs, desc=f"study {name} on {task}", unit="run", disable=not progress, dynamic_ncols=True) as bar:
+        for arm, seed, cfg in bar:
+            bar.set_postfix(arm=arm, seed=seed)
+            record = {"seed": seed, **run_arm(cfg)}
+            if study.viewpoints:
+                record["viewpoints"] = evaluate_viewpoints(cfg, 1)
+            runs[arm].append(record)
+    result = summarise(study, task, seeds, runs, out, overrides, time.perf_counter() - start, argv)
+    if pretraining is not None:
+        result["pretraining"] = pretraining
+    write_json(out / "study.json", result)
+    plot_study(result, out / "study.png")
+    (out / "study.md").write_text(markdown_table(result))
+    if study.viewpoints:
+        plot_viewpoints(result, out / "viewpoints.png")
+    return result
+
+
+def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[dict]], out: Path, overrides: dict,
+              wall: float, argv) -> dict:
+    arms = {}
+    for arm, per_seed in runs.items():
+        cfg = per_seed[0]["config"]
+        entry = {"settings": study.arms[arm], "objects": len(cfg["objects"].split(",")) if cfg["objects"] else
+                 len(objects_lib.list_objects(task, cfg["split"])),
+                 "demo_episodes_per_object": cfg["demo_episodes_per_object"],
+                 "episodes_per_round": cfg["episodes_per_round"], "parameters": parameters(_config(cfg))}
+        for key in ("seen_success", "unseen_success"):
+            values = [r[key] for r in per_seed]
+            entry[key], entry[f"{key}_std"] = float(np.mean(values)), float(np.std(values))
+        entry["wall_time_s"] = [round(r["wall_time_s"], 1) for r in per_seed]
+        entry["frames"] = [r["expert_frames"] + r["student_frames"] for r in per_seed]
+        entry["per_seed"] = [{k: r[k] for k in ("seed", "seen_success", "unseen_success", "expert_frames",
+                                                "student_frames", "wall_time_s", "mean_max_stage", "per_object",
+                                                "resumed")} for r in per_seed]
+        if "viewpoints" in per_seed[0]:
+            entry["viewpoint_success"] = {split: np.mean([r["viewpoints"]["success"][split] for r in per_seed],
+                                                         axis=0).round(4).tolist()
+                                          for split in per_seed[0]["viewpoints"]["success"]}
+            entry["viewpoint_mean"] = {split: float(np.mean(grid)) for split, grid in entry["viewpoint_success"].items()}
+            entry["viewpoint_eval_s"] = [r["viewpoints"]["wall_time_s"] for r in per_seed]
+        arms[arm] = entry
+    first = next(iter(runs.values()))[0]["config"]
+    grid = {"azimuths_deg": list(VIEW_AZIMUTHS), "polars_deg": list(VIEW_POLARS),
+            "episodes_per_object": 1} if study.viewpoints else None
+    return {"study": study.name, "task": task, "viewpoint_grid": grid, "question": study.question, "paper": study.paper, "seeds": seeds,
+            "arms": arms, "eval_episodes_per_object": first["eval_episodes"], "eval_seed": first["eval_seed"],
+            "overrides": overrides, "learner": "DAgger students of the scripted expert (imitation, not PPO)",
+            "wall_time_s": round(wall, 1),
+            "wall_time_note": "this invocation's time; arms read back from an earlier run add none (see per_seed)",
+            "command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name, "--task", task]),
+            "machine": machine_info(), "fast_mode": fast_mode(), "out": str(out)}
+
+
+def _config(settings: dict):
+    from dexart_lite.imitation.distill import DistillConfig
+
+    return DistillConfig(**settings)
+
+
+def markdown_table(result: dict) -> str:
+    """The study as a markdown table: one row per arm, mean +- std over seeds and the seeds' values."""
+    lines = [f"# Study `{result['study']}` on {result['task']}", "", result["question"], "",
+             f"Paper: {result['paper']}.", "",
+             f"Seeds {result['seeds']}; {result['eval_episodes_per_object']} deterministic evaluation episodes per "
+             f"object on every seen and unseen object; {result['learner']}.", "",
+             "| arm | training objects | seen success | unseen success | per seed (seen / unseen) | parameters | "
+             "wall time per seed |", "|---|---|---|---|---|---|---|"]
+    for arm, a in result["arms"].items():
+        seeds = ", ".join(f"{r['seen_success']:.2f} / {r['unseen_success']:.2f}" for r in a["per_seed"])
+        wall = ", ".join(f"{w / 60:.1f}" for w in a["wall_time_s"])
+        lines.append(f"| {arm} | {a['objects']} | {a['seen_success']:.2f} ± {a['seen_success_std']:.2f} | "
+                     f"{a['unseen_success']:.2f} ± {a['unseen_success_std']:.2f} | {seeds} | {a['parameters']:,} | "
+                     f"{wall} min |")
+    if result.get("pretraining"):
+        from dexart_lite.pretrain.train import MAIN_METRIC
+
+        lines += ["", "The pretrained encoders (loaded strictly, then fine-tuned in the student):", "",
+                  "| method | data | epochs | metric | seen objects (val) | unseen objects (test) |", "|---|---|---|---|---|---|"]
+        for method, m in result["pretraining"].items():
+            key = MAIN_METRIC[method]
+            test = m["test"][key] if m.get("test") and key in m["test"] else float("nan")
+            lines.append(f"| {method} | {m['data']} | {m['epochs']} | {key} | {m['val'][key]:.3g} | {test:.3g} |")
+    views = {arm: a["viewpoint_mean"] for arm, a in result["arms"].items() if "viewpoint_mean" in a}
+    if views:
+        lines += ["", f"Mean success over the {len(VIEW_AZIMUTHS) * len(VIEW_POLARS)} cameras of DexArt's grid "
+                  f"(azimuth {VIEW_AZIMUTHS[0]}..{VIEW_AZIMUTHS[-1]} deg x polar {VIEW_POLARS[0]}..{VIEW_POLARS[-1]} "
+                  "deg, 1 episode per object and camera; heatmaps in viewpoints.png):", "",
+                  "| arm | seen | unseen |", "|---|---|---|"]
+        lines += [f"| {arm} | {v['seen']:.2f} | {v['unseen']:.2f} |" for arm, v in views.items()]
+    return "\n".join(lines) + "\n"
+
+
+def plot_study(result: dict, path: Path) -> Path:
+    """Bars: mean success per arm (seen, unseen) with the std over seeds; dots: the seeds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    arms = list(result["arms"])
+    x = np.arange(len(arms))
+    fig, ax = plt.subplots(figsize=(1.6 + 1.3 * len(arms), 3.4))
+    for k, (split, color) in enumerate((("seen", "tab:blue"), ("unseen", "tab:orange"))):
+        means = [result["arms"][a][f"{split}_success"] for a in arms]
+        stds = [result["arms"][a][f"{split}_success_std"] for a in arms]
+        pos = x + (k - 0.5) * 0.36
+        ax.bar(pos, means, 0.34, yerr=stds, capsize=3, color=color, alpha=0.75, label=split)
+        for p, a in zip(pos, arms):
+            values = [r[f"{split}_success"] for r in result["arms"][a]["per_seed"]]
+            ax.scatter([p] * len(values), values, color="k", s=10, zorder=3)
+    ax.set_xticks(x, arms)
+    ax.set(ylim=(0, 1.05), ylabel="success rate",
+           title=f"{result['study']} study on {result['task']} ({len(result['seeds'])} seeds)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_viewpoints(result: dict, path: Path) -> Path:
+    """One success heatmap per arm and split over the camera grid (mean over seeds)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    arms = list(result["arms"])
+    splits = list(result["arms"][arms[0]]["viewpoint_success"])
+    fig, axes = plt.subplots(len(arms), len(splits), figsize=(3.6 * len(splits), 2.6 * len(arms)), squeeze=False)
+    for i, arm in enumerate(arms):
+        for j, split in enumerate(splits):
+            grid = np.array(result["arms"][arm]["viewpoint_success"][split])
+            ax = axes[i][j]
+            im = ax.imshow(grid, vmin=0, vmax=1, cmap="viridis", origin="upper")
+            for (r, c), v in np.ndenumerate(grid):
+                ax.text(c, r, f"{v:.2f}", ha="center", va="center", fontsize=6, color="w" if v < 0.6 else "k")
+            ax.set_xticks(range(len(VIEW_AZIMUTHS)), VIEW_AZIMUTHS, fontsize=7)
+            ax.set_yticks(range(len(VIEW_POLARS)), VIEW_POLARS, fontsize=7)
+            ax.set(xlabel="azimuth offset (deg)", ylabel="polar offset (deg)",
+                   title=f"{arm} camera in training, {split}")
+            ax.title.set_fontsize(8)
+    fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.8, label="success")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+# ----------------------------------------------------------------------------- command line
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("study", help=f"one of {', '.join(STUDIES)}")
+    parser.add_argument("--task", default="laptop", help=f"one of {', '.join(TASKS)}")
+    parser.add_argument("--seeds", type=int, default=3, help="number of seeds (0, 1, ..., N-1)")
+    parser.add_argument("--arms", default=None, help="comma-separated arms (default: all of the study)")
+    parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
+                        help="DistillConfig fields every arm shares, e.g. rounds=4 (the arms' own fields win)")
+    parser.add_argument("--out", type=Path, default=None, help="study folder (default runs/studies/<task>_<study>)")
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True, help="show a progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexart_lite.imitation.distill import DistillConfig
+
+    study = study_of(args.study)
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    arms = [a.strip() for a in args.arms.split(",") if a.strip()] if args.arms else None
+    out = args.out or Path("runs/studies") / f"{args.task}_{study.name}"
+    argv = [study.name, "--task", args.task, "--seeds", str(args.seeds), "--out", str(out)] + \
+        (["--arms", args.arms] if args.arms else []) + (["--set", *args.overrides] if args.overrides else [])
+    result = run_study(study.name, args.task, list(range(args.seeds)), out, arms,
+                       parse_overrides(args.overrides, DistillConfig), args.progress, argv)
+    print(markdown_table(result))
+    print(f"wrote {out / 'study.json'}, {out / 'study.png'}, {out / 'study.md'}")
+    return 0

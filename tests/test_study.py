@@ -1,0 +1,153 @@
+"""Studies (dexart_lite.study): names, resuming, the camera grid, random viewpoints, pretrained students.
+
+The suite runs in fast mode (conftest): a study's runs are distillations of a few dozen frames.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from dexart_lite import cli, study
+from dexart_lite.camera import viewpoint
+from dexart_lite.envs import make
+from dexart_lite.imitation import distill as distill_lib
+from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+
+from test_imitation import OBJECT, tiny_distill_config
+
+
+def test_unknown_study_or_arm_is_a_one_line_error(capsys, tmp_path):
+    with pytest.raises(ValueError, match="unknown study 'sizes'; valid choices: objects, encoder"):
+        study.run_study("sizes", "laptop", [0], tmp_path)
+    with pytest.raises(ValueError, match="unknown arm of the encoder study 'huge'; valid choices: small, medium, large"):
+        study.run_study("encoder", "laptop", [0], tmp_path, arms=["huge"])
+    assert cli.main(["study", "objects", "--arms", "all", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "valid choices: seen_half, seen" in err
+
+
+def test_objects_arms_share_the_data_budget(tmp_path):
+    half = study.arm_config(study.STUDIES["objects"], "seen_half", "laptop", 0, tmp_path)
+    full = study.arm_config(study.STUDIES["objects"], "seen", "laptop", 0, tmp_path)
+    n_half, n_full = len(half.object_names()), len(full.object_names())
+    assert (n_half, n_full) == (5, 11)
+    for field in ("demo_episodes_per_object", "episodes_per_round"):
+        ratio = n_half * getattr(half, field) / (n_full * getattr(full, field))
+        assert 0.85 <= ratio <= 1.15, (field, ratio)  # the same episodes in total, up to rounding
+    assert (half.eval_episodes, half.eval_seed) == (full.eval_episodes, full.eval_seed)
+    assert half.out.endswith("seen_half/seed0") and full.out.endswith("seen/seed0")
+
+
+def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, monkeypatch):
+    calls = []
+    real = distill_lib.distill
+
+    def counting(cfg):
+        calls.append((cfg.encoder, cfg.seed))
+        return real(cfg)
+
+    monkeypatch.setattr(distill_lib, "distill", counting)
+    overrides = {"objects": OBJECT, "max_episode_steps": 6}
+    study.run_study("encoder", "laptop", [0], tmp_path, arms=["small"], overrides=overrides, progress=False)
+    assert calls == [("small", 0)]
+    first = (tmp_path / "small" / "seed0" / study.RESULT).stat().st_mtime_ns
+    result = study.run_study("encoder", "laptop", [0], tmp_path, arms=["small", "medium"], overrides=overrides,
+                             progress=False)
+    assert calls == [("small", 0), ("medium", 0)]  # the finished arm was read back, not run again
+    assert (tmp_path / "small" / "seed0" / study.RESULT).stat().st_mtime_ns == first
+    assert [r["resumed"] for a in ("small", "medium") for r in result["arms"][a]["per_seed"]] == [True, False]
+    saved = json.loads((tmp_path / "study.json").read_text())
+    assert set(saved["arms"]) == {"small", "medium"}
+    assert saved["arms"]["medium"]["parameters"] > saved["arms"]["small"]["parameters"]
+    for key in ("seen_success", "unseen_success", "seen_success_std", "wall_time_s", "per_seed"):
+        assert key in saved["arms"]["small"]
+    assert (tmp_path / "study.png").stat().st_size > 0
+    assert "| small |" in (tmp_path / "study.md").read_text()
+    # other settings in a finished folder are refused, not silently mixed
+    with pytest.raises(ValueError, match="holds a run with other settings"):
+        study.run_study("encoder", "laptop", [0], tmp_path, arms=["small"], overrides={**overrides, "lr": 5e-4},
+                        progress=False)
+
+
+def test_camera_grid_puts_the_camera_where_the_angles_say():
+    grid = study.camera_grid("laptop")
+    assert len(grid) == 35 and len({(a, p) for a, p, _ in grid}) == 35
+    centre = np.array([0.0, 0.0, 0.5])  # the laptop camera looks from (0, 1, 0.5) at (0, 0, 0.5)
+    for d_azimuth, d_polar, pose in grid:
+        theta, phi = np.deg2rad(90 + d_azimuth), np.deg2rad(90 + d_polar)
+        expected = centre + np.array([np.sin(phi) * np.cos(theta), np.sin(phi) * np.sin(theta), np.cos(phi)])
+        np.testing.assert_allclose(pose.position, expected, atol=1e-9)
+        forward = pose.matrix[:, 2]
+        np.testing.assert_allclose(forward, (centre - expected) / np.linalg.norm(centre - expected), atol=1e-9)
+    # (0, 0) is the training camera itself
+    nominal = next(pose for a, p, pose in grid if (a, p) == (0, 0))
+    np.testing.assert_allclose(nominal.matrix, study.nominal_camera("laptop").matrix, atol=1e-9)
+    # +polar lowers the camera, +azimuth swings it toward the robot (-x)
+    low = viewpoint(study.nominal_camera("laptop"), 0.0, np.deg2rad(20))
+    side = viewpoint(study.nominal_camera("laptop"), np.deg2rad(60), 0.0)
+    assert low.position[2] < 0.5 and side.position[0] < -0.8
+
+
+def test_random_viewpoints_stay_on_the_sphere_within_the_range():
+    env = make("laptop", split="seen", object_names=[OBJECT], num_points=32, view_range=(60, 20)).unwrapped
+    nominal = env.CAMERA
+    centre = np.asarray(nominal.position) + nominal.matrix[:, 2]
+    positions = []
+    for seed in range(6):
+        env.reset(seed=seed)
+        pose = env.sensor.camera.pose
+        offset = np.asarray(pose.position) - centre
+        assert np.linalg.norm(offset) == pytest.approx(1.0, abs=1e-9)
+        polar, azimuth = np.degrees(np.arccos(offset[2])), np.degrees(np.arctan2(offset[1], offset[0]))
+        assert 70 - 1e-6 <= polar <= 110 + 1e-6 and 30 - 1e-6 <= azimuth <= 150 + 1e-6
+        positions.append(pose.position)
+    assert len({tuple(np.round(p, 6)) for p in positions}) == 6  # a new viewpoint at every reset
+    env.close()
+    fixed = make("laptop", split="seen", object_names=[OBJECT], num_points=32).unwrapped
+    fixed.reset(seed=0)
+    assert fixed.sensor.camera.pose == nominal  # no range, no camera noise: DexArt's camera
+    fixed.close()
+    with pytest.raises(ValueError, match="view_range must be"):
+        make("laptop", view_range=(60,))
+
+
+def test_viewpoint_evaluation_fills_the_grid(tmp_path, monkeypatch):
+    cfg = tiny_distill_config(tmp_path, method="bc")
+    distill_lib.distill(cfg)
+    few = [(a, p, pose) for a, p, pose in study.camera_grid("laptop") if (a, p) in ((0, 0), (60, -20))]
+    monkeypatch.setattr(study, "camera_grid", lambda task: few)
+    result = study.evaluate_viewpoints(cfg, 1, splits=("seen",))
+    grid = np.array(result["success"]["seen"])
+    assert grid.shape == (5, 7) and np.isfinite(grid).all()
+    assert json.loads((tmp_path / "run" / study.VIEWPOINTS).read_text())["success"] == result["success"]
+
+
+def test_student_starts_from_a_pretrained_encoder_strictly(tmp_path):
+    encoder = PointNetEncoder("small")
+    path = save_encoder(encoder, tmp_path / "encoder.pt")
+    cfg = tiny_distill_config(tmp_path, method="bc", pretrained=str(path), normalize_points=False, epochs=1)
+    distill_lib.validate(cfg)
+    result = distill_lib.distill(cfg)
+    student = actor_critic_from_checkpoint(load_checkpoint(result["checkpoint"]), result["checkpoint"])
+    trunk = student.module[0].module
+    assert float(trunk.point_scale) == 1.0 and not trunk.point_loc.any()  # raw metres, as the encoder learnt
+    with pytest.raises(ValueError, match="holds a 'medium' PointNetEncoder but the model has a 'small' one"):
+        distill_lib.distill(tiny_distill_config(tmp_path, out=str(tmp_path / "other"), method="bc",
+                                                pretrained=str(save_encoder(PointNetEncoder("medium"),
+                                                                            tmp_path / "medium.pt"))))
+    with pytest.raises(FileNotFoundError, match="pretrained encoder not found"):
+        distill_lib.validate(tiny_distill_config(tmp_path, pretrained=str(tmp_path / "missing.pt")))
+
+
+def test_viewpoint_and_imagination_settings_reach_the_envs(tmp_path):
+    cfg = tiny_distill_config(tmp_path, rounds=1, imagination=False, view_range="60,20")
+    result = distill_lib.distill(cfg)
+    manifest = json.loads((tmp_path / "run" / "demos" / "manifest.json").read_text())
+    assert manifest["imagination"] is False and manifest["view_range"] == [60.0, 20.0]
+    assert manifest["cloud_points"] == 32  # no imagined points
+    payload = load_checkpoint(result["checkpoint"])
+    assert payload["dims"]["num_points"] == 32
+    with pytest.raises(ValueError, match="view_range must be two degrees"):
+        distill_lib.validate(tiny_distill_config(tmp_path, view_range="60"))

@@ -297,6 +297,11 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
         entry["per_seed"] = [{k: r[k] for k in ("seed", "seen_success", "unseen_success", "expert_frames",
                                                 "student_frames", "wall_time_s", "mean_max_stage", "per_object",
                                                 "resumed")} for r in per_seed]
+        if study.name == "objects":  # the seen split in two: the seen_half objects and the other six
+            half = {info.name for info in objects_lib.list_objects(task, "seen_half")}
+            for group, keep in (("seen_half_objects", lambda n: n in half), ("other_seen_objects", lambda n: n not in half)):
+                values = [float(np.mean([v for n, v in r["per_object"]["seen"].items() if keep(n)])) for r in per_seed]
+                entry[f"{group}_success"], entry[f"{group}_success_std"] = float(np.mean(values)), float(np.std(values))
         if "viewpoints" in per_seed[0]:
             entry["viewpoint_success"] = {split: np.mean([r["viewpoints"]["success"][split] for r in per_seed],
                                                          axis=0).round(4).tolist()
@@ -345,6 +350,13 @@ def markdown_table(result: dict) -> str:
             key = MAIN_METRIC[method]
             test = m["test"][key] if m.get("test") and key in m["test"] else float("nan")
             lines.append(f"| {method} | {m['data']} | {m['epochs']} | {key} | {m['val'][key]:.3g} | {test:.3g} |")
+    if result["study"] == "objects":
+        lines += ["", "The seen split in two (mean ± std over seeds): the 5 `seen_half` laptops, on which both arms "
+                  "train, and the other 6 seen laptops, on which only `seen` trains:", "",
+                  "| arm | the 5 seen_half objects | the other 6 seen objects |", "|---|---|---|"]
+        lines += [f"| {arm} | {a['seen_half_objects_success']:.2f} ± {a['seen_half_objects_success_std']:.2f} | "
+                  f"{a['other_seen_objects_success']:.2f} ± {a['other_seen_objects_success_std']:.2f} |"
+                  for arm, a in result["arms"].items()]
     views = {arm: a["viewpoint_mean"] for arm, a in result["arms"].items() if "viewpoint_mean" in a}
     if views:
         lines += ["", f"Mean success over the {len(VIEW_AZIMUTHS) * len(VIEW_POLARS)} cameras of DexArt's grid "

@@ -249,6 +249,26 @@ def test_detached_critic_trains_only_the_value_head(tmp_path):
         assert (trunk_grad == 0.0) if detach else (trunk_grad > 0.0)
 
 
+def test_reward_scale_scales_the_rewards_gae_sees(tmp_path):
+    """GAE's advantage is affine in the rewards: A(c) - A(1) = (c - 1) * sum_k (gamma lambda)^k r_{t+k}, so
+    A(3) - A(1) = 2 (A(2) - A(1)); the episode returns that are logged stay unscaled."""
+    from functools import partial
+
+    cfg = tiny_config(tmp_path, frames=200, frames_per_batch=200, workers=0, eval_episodes=0)
+    learner = ppo.build_learner(cfg, partial(make_env, "laptop", num_points=32, max_episode_steps=20))
+    env = make_env("laptop", num_points=32, max_episode_steps=20, seed=0)
+    with torch.no_grad():
+        data = env.rollout(20, learner.actor_critic)
+    env.close()
+    returns = data["next", "episode_reward"].clone()
+    adv = {c: ppo.advantages(data.clone(), learner, c)["advantage"] for c in (1.0, 2.0, 3.0)}
+    assert not torch.allclose(adv[1.0], adv[2.0])
+    torch.testing.assert_close(adv[3.0] - adv[1.0], 2 * (adv[2.0] - adv[1.0]), rtol=1e-4, atol=1e-5)
+    assert torch.equal(data["next", "episode_reward"], returns)
+    with pytest.raises(ValueError, match="reward_scale must be"):
+        ppo.validate(tiny_config(tmp_path, reward_scale=0.0))
+
+
 def test_distributed_backend_on_loopback(tmp_path):
     cfg = tiny_config(tmp_path, frames=400, frames_per_batch=200, workers=2, backend="distributed",
                       eval_episodes=0, tcp_port=free_port())

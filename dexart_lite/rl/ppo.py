@@ -92,6 +92,9 @@ class PPOConfig:
     critic_lr: float | None = field(default=None, metadata={"help": "learning rate of the value head (None: --lr)"})
     target_kl: float | None = field(default=None, metadata={"help": "stop a batch's epochs once the approximate KL "
                                     "to the collecting policy exceeds this (SB3's target_kl; None: never)"})
+    reward_scale: float = field(default=1.0, metadata={"help": "rewards are multiplied by this before GAE, so "
+                                "the critic fits values of order 1 (DexArt: 1; its success bonus reaches ~300). "
+                                "Logged returns stay unscaled"})
     critic_detach: bool = field(default=False, metadata={"help": "the value loss trains the value head only: its "
                                 "gradient does not reach the shared trunk (DexArt/SB3: it does). A critic that is "
                                 "still wrong then cannot reshape the features a distilled actor relies on"})
@@ -169,6 +172,12 @@ def validate(cfg: PPOConfig) -> None:
     if cfg.critic_warmup < 0 or not 0.0 < cfg.bc_decay <= 1.0 or not cfg.bc_coef >= 0.0:
         raise ValueError(f"need critic_warmup >= 0, 0 < bc_decay <= 1 and bc_coef >= 0, got {cfg.critic_warmup}, "
                          f"{cfg.bc_decay}, {cfg.bc_coef}")
+    if not (math.isfinite(cfg.reward_scale) and cfg.reward_scale > 0):
+        raise ValueError(f"reward_scale must be a finite number > 0, got {cfg.reward_scale}")
+    for name in ("critic_lr", "target_kl"):
+        value = getattr(cfg, name)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0 (or None), got {value}")
     if cfg.bc_coef > 0 and not cfg.bc_demos:
         raise ValueError("bc_coef > 0 needs --bc-demos (a demonstrations folder)")
     if cfg.backend == "ray" and importlib.util.find_spec("ray") is None:
@@ -335,9 +344,12 @@ def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int
         "frames": frames, "batches": batches, "history": history, "dims": learner.dims})
 
 
-def advantages(data, learner: Learner):
-    """GAE over time (the last batch dimension), once per batch as SB3; the flat batch the loss reads."""
+def advantages(data, learner: Learner, reward_scale: float = 1.0):
+    """GAE over time (the last batch dimension), once per batch as SB3, on the rewards times
+    ``reward_scale``; the flat batch the loss reads."""
     with torch.no_grad():
+        if reward_scale != 1.0:
+            data["next", "reward"] = data["next", "reward"] * reward_scale
         add_next_values(data, learner.value_operator)
         learner.gae(data)
     return data.reshape(-1).select(*BATCH_KEYS)
@@ -463,7 +475,7 @@ def train(cfg: PPOConfig) -> dict:
             collected = time.perf_counter()
             torch.set_num_threads(learner_threads)
             data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
-            losses = ppo_update(advantages(data, learner), learner, cfg, batches)
+            losses = ppo_update(advantages(data, learner, cfg.reward_scale), learner, cfg, batches)
             collector.update_policy_weights_()
             updated = time.perf_counter()
 

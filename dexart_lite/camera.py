@@ -166,6 +166,13 @@ class DepthCamera:
             renderer=ER_TINY_RENDERER, shadow=0, flags=ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
         return np.asarray(depth, dtype=np.float32).reshape(-1), np.asarray(seg, dtype=np.int64).reshape(-1)
 
+    def depth_image(self, depth: np.ndarray, seg: np.ndarray) -> np.ndarray:
+        """Metric depth along the optical axis (H, W) float32, m, from ``render_depth``'s buffers; 0 where
+        the ray hits nothing. The input of the 2-D baseline policy (``models.depth_cnn``)."""
+        cam = self.intrinsics
+        z = cam.far * cam.near / (cam.far - (cam.far - cam.near) * depth)
+        return np.where(seg >= 0, z, 0.0).astype(np.float32).reshape(cam.height, cam.width)
+
     def back_project(self, depth: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World points (M, 3) and segmentation values (M,) of the pixels that hit something."""
         cam = self.intrinsics

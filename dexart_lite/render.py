@@ -89,7 +89,12 @@ def run(args: argparse.Namespace) -> int:
     from dexart_lite.envs import make
 
     check_choice("task", args.task, dexart_lite.TASKS)
-    env = make(args.task, split=args.split, render_mode="rgb_array")
+    kwargs = {}
+    if args.policy not in ("scripted", "random") and Path(args.policy).is_file():  # a checkpoint: its observation
+        from dexart_lite.rl.checkpoint import load_checkpoint, observation_kwargs
+
+        kwargs = {k: v for k, v in observation_kwargs(load_checkpoint(args.policy)).items() if k != "num_points"}
+    env = make(args.task, split=args.split, render_mode="rgb_array", **kwargs)
     policy = make_policy(args.policy, env, args.seed)
     frames, summary = record_episode(env, policy, seed=args.seed,
                                      options={"object": args.object} if args.object else None)

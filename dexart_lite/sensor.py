@@ -31,6 +31,7 @@ class SensorConfig:
     # (azimuth, polar) half-widths (rad) of a random viewpoint on DexArt's viewpoint sphere, drawn at
     # every reset (``camera.viewpoint``); None: the nominal pose (DexArt's training camera)
     view_range: tuple[float, float] | None = None
+    depth_image: bool = False  # also return the camera's metric depth image (the 2-D baseline's input)
     intrinsics: CameraIntrinsics = field(default_factory=CameraIntrinsics)
 
     @property
@@ -46,6 +47,7 @@ class PointCloud:
     labels: np.ndarray  # (N,) int64 in 0..3 (pointcloud.LABELS); -1 only for padding of an empty view
     imagined: np.ndarray  # (N,) bool, True for imagined hand points
     num_visible: int  # observed points that survived the crop, before sampling
+    depth_image: np.ndarray | None = None  # (H, W) float32 metric depth of the same frame (m, 0: no hit), if asked for
 
 
 class PointCloudSensor:
@@ -84,9 +86,11 @@ class PointCloudSensor:
             pose = pose.perturbed(rng, self.config.camera_position_std, self.config.camera_rotation_std)
         self.camera.set_pose(pose)
 
-    def visible_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """All labelled, cropped camera points: (M, 3) float32 robot-base frame, (M,) labels."""
-        points, seg = self.camera.render()
+    def visible_points(self, depth: np.ndarray | None = None, seg: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """All labelled, cropped camera points: (M, 3) float32 robot-base frame, (M,) labels; from the
+        buffers of ``camera.render_depth`` if given, else from a new frame."""
+        points, seg = self.camera.render() if depth is None else self.camera.back_project(depth, seg)
         points = points - self.robot_base
         labels = self.labels(seg)
         keep = (labels >= 0) & pc.crop_mask(points, self.crop)
@@ -99,7 +103,13 @@ class PointCloudSensor:
 
     def observe(self, rng: np.random.Generator) -> PointCloud:
         cfg = self.config
-        points, labels = self.visible_points()
+        image = None
+        if cfg.depth_image:  # one frame for both the cloud and the image
+            depth, seg = self.camera.render_depth()
+            image = self.camera.depth_image(depth, seg)
+            points, labels = self.visible_points(depth, seg)
+        else:
+            points, labels = self.visible_points()
         idx = pc.sample_indices(len(points), cfg.num_points, rng)
         if len(idx) == 0:  # nothing in view (e.g. a far-off camera override): zeros, label -1
             obs_points = np.zeros((cfg.num_points, 3), np.float32)
@@ -112,4 +122,4 @@ class PointCloudSensor:
             obs_points = np.concatenate([obs_points, self.imagined_points()])
             obs_labels = np.concatenate([obs_labels, self._imagined_labels])
         return PointCloud(points=obs_points.astype(np.float32), labels=obs_labels, imagined=self._imagined_mask,
-                          num_visible=len(points))
+                          num_visible=len(points), depth_image=image)

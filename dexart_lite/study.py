@@ -76,6 +76,11 @@ STUDIES: dict[str, Study] = {
         "DexArt (Sec. 5.3, Fig. 9, Laptop): point-cloud policies keep most of their success over 35 camera poses "
         "(azimuth -60..60 deg, polar -20..20 deg) while an image policy collapses away from the training view",
         {"fixed": {"view_range": ""}, "random": {"view_range": "60,20"}}, viewpoints=True),
+    "viewpoint-2d": Study(
+        "viewpoint-2d", "Does a policy on 2-D depth images keep working when the camera moves?",
+        "DexArt (Sec. 5.3, Fig. 9): a policy on images loses its success away from the training view, the "
+        "point-cloud policy does not; compare with the `fixed` arm of the viewpoint study",
+        {"depth_cnn": {"encoder": "depth_cnn", "view_range": ""}}, viewpoints=True),
 }
 
 # DexArt's robustness grid (``ROBUSTNESS_INIT_CAMERA_CONFIG``): 7 azimuth x 5 polar offsets (degrees) of

@@ -51,6 +51,27 @@ def test_back_projection_matches_ray_casting(pose):
     sim.close()
 
 
+def test_depth_image_is_the_metric_depth_of_the_same_frame():
+    """The 2-D baseline's image: a flat floor seen straight down from 0.8 m reads 0.8 m in every pixel
+    that hits it; a box of 0.1 m on it reads 0.7 m at the centre pixel; rays that hit nothing read 0."""
+    sim = BulletSim()
+    sim.create_box("slab", (0.2, 0.2, 0.01), (0.0, 0.0, -0.01))  # top face at z = 0
+    sim.create_box("box", (0.05, 0.05, 0.05), (0.0, 0.0, 0.05))  # top face at z = 0.1
+    pose = CameraPose.look_at((0.0, 0.0, 0.8), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))
+    cam = DepthCamera(sim, CameraIntrinsics(), pose)
+    depth, seg = cam.render_depth()
+    image = cam.depth_image(depth, seg)
+    assert image.shape == (64, 64) and image.dtype == np.float32
+    assert image[32, 32] == pytest.approx(0.7, abs=2e-3)  # the box top
+    assert image[0, 0] == 0.0  # beyond the 0.4 m slab: nothing hit
+    floor = (image > 0.75)
+    assert floor.sum() > 100 and np.allclose(image[floor], 0.8, atol=2e-3)
+    # and it is the z of the very points the cloud is made of
+    points, _ = cam.back_project(depth, seg)
+    np.testing.assert_allclose(np.sort(0.8 - points[:, 2]), np.sort(image[image > 0]), atol=1e-5)
+    sim.close()
+
+
 def test_observed_points_lie_on_the_box_with_the_right_labels():
     sim, robot, box, sensor = make_scene()
     points, labels = sensor.visible_points()

@@ -151,3 +151,28 @@ def test_viewpoint_and_imagination_settings_reach_the_envs(tmp_path):
     assert payload["dims"]["num_points"] == 32
     with pytest.raises(ValueError, match="view_range must be two degrees"):
         distill_lib.validate(tiny_distill_config(tmp_path, view_range="60"))
+
+
+def test_depth_image_student_the_2d_baseline(tmp_path):
+    """encoder=depth_cnn: the env observes the depth image of the cloud's camera, the demonstrations store
+    it, the student reads it (not the cloud), and its checkpoint evaluates and loads strictly."""
+    env = make("laptop", split="seen", object_names=[OBJECT], num_points=32, depth_image=True)
+    obs, _ = env.reset(seed=0)
+    assert obs["depth_image"].shape == (64, 64) and env.observation_space.contains(obs)
+    assert (obs["depth_image"] > 0).sum() > 200  # the laptop and the robot
+    env.close()
+    cfg = tiny_distill_config(tmp_path, encoder="depth_cnn", rounds=1)
+    result = distill_lib.distill(cfg)
+    assert result["encoder"] is None  # no PointNet to save on its own
+    from dexart_lite.imitation.demos import load_demos
+
+    demos = load_demos(tmp_path / "run" / "demos")
+    assert demos["depth_image"].shape[1:] == (64, 64)
+    student = actor_critic_from_checkpoint(load_checkpoint(result["checkpoint"]), result["checkpoint"])
+    trunk = student.module[0].module
+    assert type(trunk.encoder).__name__ == "DepthCNN" and student.module[0].in_keys[0] == "depth_image"
+    assert 0.0 <= result["seen_success"] <= 1.0
+    with pytest.raises(ValueError, match="no PointNet"):
+        distill_lib.validate(tiny_distill_config(tmp_path, encoder="depth_cnn", pretrained=str(tmp_path / "x.pt")))
+    with pytest.raises(ValueError, match="valid choices: small, medium, large, depth_cnn"):
+        distill_lib.validate(tiny_distill_config(tmp_path, encoder="resnet"))

@@ -90,6 +90,8 @@ class DexArtEnv(gym.Env):
     num_points, imagination, point_noise, camera_noise: point-cloud settings (``SensorConfig``);
     view_range: ``(azimuth, polar)`` half-widths in degrees of a random camera viewpoint drawn at every
     reset on DexArt's viewpoint sphere (``camera.viewpoint``); None (default): the fixed camera;
+    depth_image: also observe the camera's metric depth image, ``obs["depth_image"]`` (64, 64) float32 m
+    (0 where nothing is hit), the input of the 2-D baseline (not part of DexArt's observation);
     randomize: DexArt's object pose randomisation; dt, frame_skip, solver_iterations: physics;
     render_mode: None or "rgb_array".
     """
@@ -109,7 +111,7 @@ class DexArtEnv(gym.Env):
 
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
-                 view_range=None, randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
+                 view_range=None, depth_image: bool = False, randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
                  render_mode: str | None = None, **unknown):
         if unknown:
             valid = [n for n in inspect.signature(DexArtEnv.__init__).parameters if n not in ("self", "unknown")]
@@ -149,7 +151,8 @@ class DexArtEnv(gym.Env):
             self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
         self.objects = ArticulatedObjects(self.sim, infos, self.labels)
         self.sensor_config = SensorConfig(num_points=num_points, imagination=imagination, point_noise=point_noise,
-                                          camera_noise=camera_noise, view_range=view_range)
+                                          camera_noise=camera_noise, view_range=view_range,
+                                          depth_image=bool(depth_image))
         self.sensor = PointCloudSensor(self.sim, self.sensor_config, camera_pose, self.CROP,
                                        self.ROBOT_BASE, self.labels, self.robot.body)
         self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}
@@ -161,6 +164,9 @@ class DexArtEnv(gym.Env):
             "imagined_mask": spaces.MultiBinary(n_pts),
             "state": spaces.Box(-np.inf, np.inf, (self.state_dim,), np.float32),
         })
+        if depth_image:
+            intr = self.sensor_config.intrinsics
+            self.observation_space["depth_image"] = spaces.Box(0.0, np.inf, (intr.height, intr.width), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self._state: State | None = None
         self._obs: dict | None = None
@@ -313,8 +319,11 @@ class DexArtEnv(gym.Env):
         r = s.robot
         vector = np.concatenate([r.qpos, r.palm_linvel, r.palm_angvel, r.palm_pos, self.extra_state(s),
                                  [s.t / s.horizon]])
-        return {"point_cloud": cloud.points, "imagined_mask": cloud.imagined.astype(np.int8),
-                "state": vector.astype(np.float32)}
+        obs = {"point_cloud": cloud.points, "imagined_mask": cloud.imagined.astype(np.int8),
+               "state": vector.astype(np.float32)}
+        if cloud.depth_image is not None:
+            obs["depth_image"] = cloud.depth_image
+        return obs
 
     def _scenery_can_occlude(self, pose: CameraPose) -> bool:
         """Whether the table or the pedestal could hide a point of the crop box from this camera.

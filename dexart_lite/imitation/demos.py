@@ -76,6 +76,14 @@ SAMPLE_SPECS = {
     "t": ((), torch.int64),
     "privileged": ((PRIVILEGED_DIM,), torch.float32),
 }
+# with depth images (the 2-D baseline, manifest "depth_image": true), one more key:
+#   depth_image    (S, 64, 64) float32   the camera's metric depth image of the same frame, m (0: no hit)
+IMAGE_SPECS = {"depth_image": ((64, 64), torch.float32)}
+
+
+def sample_specs(manifest: dict) -> dict:
+    """The keys of a demonstrations folder: ``SAMPLE_SPECS``, plus ``IMAGE_SPECS`` if it holds images."""
+    return {**SAMPLE_SPECS, **(IMAGE_SPECS if manifest.get("depth_image") else {})}
 
 
 class Recorder:
@@ -90,6 +98,7 @@ class Recorder:
         self.object_index = {name: i for i, name in enumerate(objects)}
         self.episode = first_episode - 1
         self.rows: list[tuple] = []
+        self.images: list[np.ndarray] = []  # depth images, when the env observes them
 
     def __call__(self, obs, action, reward, next_obs, info, t) -> None:
         if t == 0:
@@ -100,6 +109,8 @@ class Recorder:
                           bool(info["success"]), self.object_index[info["object_name"]], self.episode, t,
                           np.zeros(PRIVILEGED_DIM, np.float32) if getattr(self.labelled, "privileged", None) is None
                           else np.asarray(self.labelled.privileged, np.float32)))
+        if "depth_image" in obs:
+            self.images.append(np.array(obs["depth_image"], np.float32))
 
     def samples(self) -> TensorDict:
         """The recorded steps as a ``TensorDict`` of batch size ``[S]`` (keys: ``SAMPLE_SPECS``)."""
@@ -107,6 +118,8 @@ class Recorder:
             raise ValueError("no steps were recorded")
         columns = [torch.as_tensor(np.stack(column)) for column in zip(*self.rows)]
         data = {key: column.to(dtype) for (key, (_, dtype)), column in zip(SAMPLE_SPECS.items(), columns)}
+        if self.images:
+            data["depth_image"] = torch.as_tensor(np.stack(self.images))
         return TensorDict(data, batch_size=[len(self.rows)])
 
 
@@ -129,11 +142,12 @@ def package_versions() -> dict[str, str]:
 def collect_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int, out: str | Path,
                   num_points: int = 512, max_episode_steps: int | None = None, object_names: list[str] | None = None,
                   progress: bool = True, camera_noise: bool = True, imagination: bool = True,
-                  view_range: tuple[float, float] | None = None) -> dict:
+                  view_range: tuple[float, float] | None = None, depth_image: bool = False) -> dict:
     """Run the noisy expert on every object of ``split`` and write ``out`` (see the module docstring);
     returns the manifest. ``camera_noise``: DexArt's per-reset camera perturbation (on, as in training);
     ``imagination``: the 96 imagined hand points in the cloud (on, as in DexArt); ``view_range``: random
-    camera viewpoints, (azimuth, polar) half-widths in degrees (the env's keyword; None: fixed camera)."""
+    camera viewpoints, (azimuth, polar) half-widths in degrees (the env's keyword; None: fixed camera);
+    ``depth_image``: also store the camera's depth image of every step (``IMAGE_SPECS``)."""
     from dexart_lite.envs import make
     from dexart_lite.experts import ScriptedPolicy
 
@@ -154,7 +168,8 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
 
     start = time.perf_counter()
     env = make(task, split=split, object_names=names, num_points=num_points, point_noise=True, camera_noise=camera_noise,
-               max_episode_steps=max_episode_steps, imagination=imagination, view_range=view_range)
+               max_episode_steps=max_episode_steps, imagination=imagination, view_range=view_range,
+               depth_image=depth_image)
     expert = noisy(ScriptedPolicy(env), noise, np.random.default_rng([seed, 1]))
     recorder = Recorder(expert, names)
     episodes = episode_list(names, episodes_per_object, np.random.default_rng([seed, 0]))
@@ -167,7 +182,7 @@ def collect_demos(task: str, split: str, episodes_per_object: int, noise: float,
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "task": task, "split": split, "objects": names,
         "seed": seed, "noise": noise, "camera_noise": camera_noise, "imagination": imagination,
-        "view_range": list(view_range) if view_range is not None else None,
+        "view_range": list(view_range) if view_range is not None else None, "depth_image": bool(depth_image),
         "episodes_per_object": episodes_per_object, "num_points": num_points,
         "cloud_points": samples["point_cloud"].shape[1], "state_dim": samples["observation"].shape[1],
         "max_episode_steps": max_episode_steps, "samples": samples.batch_size[0],
@@ -218,10 +233,11 @@ def load_demos(path: str | Path) -> TensorDict:
     ``FileNotFoundError`` / ``ValueError`` in one line for a missing, corrupt or foreign folder."""
     path = Path(path)
     manifest = read_manifest(path)
+    specs = sample_specs(manifest)
     sizes = {"N": manifest["cloud_points"], "D": manifest["state_dim"]}
-    shapes = {key: (manifest["samples"], *(sizes.get(d, d) for d in shape)) for key, (shape, _) in SAMPLE_SPECS.items()}
+    shapes = {key: (manifest["samples"], *(sizes.get(d, d) for d in shape)) for key, (shape, _) in specs.items()}
     # load_memmap skips missing files and maps truncated ones without a word: check the files first
-    for key, (_, dtype) in SAMPLE_SPECS.items():
+    for key, (_, dtype) in specs.items():
         file = path / SAMPLES / f"{key}.memmap"
         expected = math.prod(shapes[key]) * dtype.itemsize
         if not file.is_file() or file.stat().st_size != expected:
@@ -233,7 +249,7 @@ def load_demos(path: str | Path) -> TensorDict:
     except Exception as err:  # missing or unreadable meta.json, ...
         detail = " ".join(str(err).split()) or type(err).__name__
         raise ValueError(f"corrupt demonstrations {path / SAMPLES} ({detail[:200]})") from None
-    for key, (_, dtype) in SAMPLE_SPECS.items():
+    for key, (_, dtype) in specs.items():
         if key not in samples.keys() or tuple(samples[key].shape) != shapes[key] or samples[key].dtype != dtype:
             found = f"{tuple(samples[key].shape)} {samples[key].dtype}" if key in samples.keys() else "missing"
             raise ValueError(f"corrupt demonstrations {path}: {key} is {found} in meta.json, the manifest says "

@@ -44,9 +44,9 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
-from dexart_lite.models.actor_critic import (HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_of, make_actor_critic,
-                                             trunk_of)
-from dexart_lite.models.pointnet import ENCODER_SIZES, load_encoder, save_encoder
+from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_label, encoder_of,
+                                             input_key, make_actor_critic, trunk_of)
+from dexart_lite.models.pointnet import load_encoder, save_encoder
 from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
@@ -76,7 +76,8 @@ class DistillConfig:
 
     task: str = field(default="laptop", metadata={"help": f"one of {', '.join(TASKS)}"})
     method: str = field(default="dagger", metadata={"help": "bc (demonstrations only) or dagger"})
-    encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large"})
+    encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large; or depth_cnn, the "
+                         "2-D baseline (a CNN on the 64x64 depth image of the same camera instead of the cloud)"})
     split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
     objects: str | None = field(default=None, metadata={"help": "comma-separated training objects (default: the split)"})
     demos: str | None = field(default=None, metadata={"help": "start from this `dexart-lite data demos` folder"})
@@ -135,6 +136,8 @@ class DistillConfig:
         """Keyword arguments of the env shared by collection, evaluation and the GIF."""
         kwargs = {"num_points": self.num_points, "point_noise": True, "camera_noise": self.camera_noise,
                   "imagination": self.imagination}
+        if self.encoder == "depth_cnn":  # the 2-D baseline reads the camera's depth image
+            kwargs["depth_image"] = True
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
@@ -187,7 +190,7 @@ def validate(cfg: DistillConfig) -> None:
     """``ValueError`` naming the valid choices or range for the first bad field."""
     check_choice("task", cfg.task, TASKS)
     check_choice("method", cfg.method, METHODS)
-    check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
+    check_choice("encoder", cfg.encoder, ENCODERS)
     check_choice("training split", cfg.split, ("seen", "seen_half"))
     check_choice("loss", cfg.loss, LOSSES)
     for name in ("demo_episodes_per_object", "rounds", "episodes_per_round", "epochs", "epochs_per_round",
@@ -217,6 +220,8 @@ def validate(cfg: DistillConfig) -> None:
     cfg.dropped_state(33)
     if not (math.isfinite(cfg.arm_weight) and cfg.arm_weight > 0):
         raise ValueError(f"arm_weight must be a finite weight > 0, got {cfg.arm_weight}")
+    if cfg.pretrained and cfg.encoder == "depth_cnn":
+        raise ValueError("--pretrained holds a PointNet; the depth_cnn student has no PointNet to load it into")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
         raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
     cfg.object_names()
@@ -253,7 +258,7 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
             total = 0.0
             for idx in torch.randperm(n, generator=generator).split(cfg.batch_size):
                 batch = data[idx]
-                out = policy(batch.select(POINTS_KEY, STATE_KEY))
+                out = policy(batch.select(input_key(cfg.encoder), STATE_KEY))
                 target = batch["expert_action"]  # (B, 22)
                 if cfg.loss == "mse":
                     loss = ((out["loc"] - target).pow(2) * weights).mean()
@@ -340,7 +345,7 @@ def distill(cfg: DistillConfig) -> dict:
         if not cfg.demos:
             collect_demos(cfg.task, cfg.split, cfg.demo_episodes_per_object, cfg.demo_noise, cfg.seed, demo_path,
                           cfg.num_points, cfg.max_episode_steps, names, cfg.progress, cfg.camera_noise,
-                          cfg.imagination, cfg.view_range_degrees())
+                          cfg.imagination, cfg.view_range_degrees(), cfg.encoder == "depth_cnn")
         manifest = read_manifest(demo_path)
         demos = load_demos(demo_path)
 
@@ -353,8 +358,9 @@ def distill(cfg: DistillConfig) -> dict:
         actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std,
                                          **architecture(dims))
         if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
-            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY] if cfg.normalize_points
-                                                     else None, cfg.dropped_state(dims["state_dim"]))
+            use_points = cfg.normalize_points and cfg.encoder != "depth_cnn"
+            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY] if use_points else None,
+                                                     cfg.dropped_state(dims["state_dim"]))
         if cfg.pretrained:  # strict: a size or key mismatch is an error
             load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
         # The student that acts and is saved: an exponential moving average of the trained weights (a
@@ -427,7 +433,8 @@ def distill(cfg: DistillConfig) -> dict:
             env.close()
             shutil.rmtree(out / "buffer", ignore_errors=True)
         ckpt = save_student(out / CHECKPOINT, student_net, cfg, dims, frames, history)
-        encoder = save_encoder(encoder_of(student_net), out / "encoder.pt")
+        # the PointNet alone, for `dexart-lite train --pretrained` (the 2-D baseline's CNN has no such use)
+        encoder = None if cfg.encoder == "depth_cnn" else save_encoder(encoder_of(student_net), out / "encoder.pt")
 
         # ---- 4. evaluation on seen and unseen objects, GIF, curve, report
         evals = evaluate_student(student_net, cfg, out)
@@ -436,11 +443,11 @@ def distill(cfg: DistillConfig) -> dict:
             unseen = objects_lib.list_objects(cfg.task, "unseen")[0].name
             gif = record_gif(student_net, cfg.task, out / "episode.gif", "unseen", unseen, cfg.eval_seed,
                              cfg.env_kwargs())["path"]
-    curve = plot_rounds(history, evals, out / "rounds.png", title=f"{cfg.method} on {cfg.task}, {cfg.encoder} PointNet")
+    curve = plot_rounds(history, evals, out / "rounds.png", title=f"{cfg.method} on {cfg.task}, {encoder_label(cfg.encoder)}")
     wall = time.perf_counter() - start
     report = write_report(out / "report.md", cfg, manifest, history, evals, curve, wall, gif)
     by_split = {e["split"]: e for e in evals}
-    return {"checkpoint": str(ckpt), "encoder": str(encoder), "report": str(report), "curve": str(curve), "gif": gif,
+    return {"checkpoint": str(ckpt), "encoder": str(encoder) if encoder else None, "report": str(report), "curve": str(curve), "gif": gif,
             "log": str(out / "log.csv"), "demos": str(demo_path),
             "seen_success": by_split["seen"]["success_rate"] if evals else None,
             "unseen_success": by_split["unseen"]["success_rate"] if evals else None,

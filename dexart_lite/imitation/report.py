@@ -12,6 +12,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from dexart_lite.models.actor_critic import encoder_label  # noqa: E402
 from dexart_lite.rl.evaluate import markdown_table  # noqa: E402
 
 
@@ -45,7 +46,7 @@ def write_report(path: Path, cfg, manifest: dict, history: list[dict], evals: li
     and the evaluation table."""
     last = history[-1]
     lines = [
-        f"# {cfg.method.upper()} student on {cfg.task} ({cfg.encoder} PointNet)", "",
+        f"# {cfg.method.upper()} student on {cfg.task} ({encoder_label(cfg.encoder)})", "",
         f"- expert frames {last['expert_frames']:,} ({len(manifest['episodes'])} demonstration episodes, executed-"
         f"action noise {manifest['noise']}, expert success {manifest['expert_success_rate']:.2f}); student frames "
         f"{last['student_frames']:,} in {len(history) - 1} DAgger rounds; buffer {last['buffer']:,} samples",

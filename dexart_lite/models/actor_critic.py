@@ -28,10 +28,14 @@ from torchrl.data import Bounded
 from torchrl.envs.utils import ExplorationType
 from torchrl.modules import ActorValueOperator, IndependentNormal, ProbabilisticActor, ValueOperator
 
-from dexart_lite.models.pointnet import FEATURE_DIM, PointNetEncoder
+from dexart_lite.models.depth_cnn import DepthCNN
+from dexart_lite.models.pointnet import ENCODER_SIZES, FEATURE_DIM, PointNetEncoder
 
 POINTS_KEY = "point_cloud"  # (..., N, 3) float32, robot-base frame, m
 STATE_KEY = "observation"  # the env's "state" vector; torchrl's GymWrapper renames "state" to "observation"
+IMAGE_KEY = "depth_image"  # (..., 64, 64) float32, m: the 2-D baseline's input (env depth_image=True)
+# the trunk's encoders: DexArt's three PointNets, and the 2-D baseline's CNN on the depth image
+ENCODERS = (*ENCODER_SIZES, "depth_cnn")
 HIDDEN_KEY = "hidden"  # (..., 320) trunk output
 STATE_HIDDEN = 64
 HEAD_HIDDEN = (64, 64)
@@ -48,7 +52,9 @@ class Trunk(nn.Module):
 
     def __init__(self, state_dim: int, encoder_size: str = "small", normalize: bool = False):
         super().__init__()
-        self.encoder = PointNetEncoder(encoder_size)
+        # the 2-D baseline reads the depth image instead of the cloud (the point normalisation then stays unused)
+        self.image = encoder_size == "depth_cnn"
+        self.encoder = DepthCNN() if self.image else PointNetEncoder(encoder_size)
         self.state_mlp = nn.Sequential(nn.Linear(state_dim, STATE_HIDDEN), nn.ReLU(),
                                        nn.Linear(STATE_HIDDEN, STATE_HIDDEN))
         self.out_dim = FEATURE_DIM + STATE_HIDDEN
@@ -81,9 +87,10 @@ class Trunk(nn.Module):
         self.point_scale.copy_(flat.std(0).mean().clamp_min(1e-3).reshape(1))
 
     def forward(self, points: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
-        """points (..., N, 3), state (..., D) -> (..., 320)."""
+        """points (..., N, 3) (the 2-D baseline: a depth image (..., 64, 64)), state (..., D) -> (..., 320)."""
         if self.normalize:
-            points = (points - self.point_loc) / self.point_scale
+            if not self.image:
+                points = (points - self.point_loc) / self.point_scale
             state = (state - self.state_loc) / self.state_scale * self.state_mask
         return torch.cat([self.encoder(points), self.state_mlp(state)], dim=-1)
 
@@ -123,9 +130,10 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
     orthogonal_init(value_net[:-1], math.sqrt(2))
     orthogonal_init(policy_net[-1], 0.01)
     orthogonal_init(value_net[-1], 1.0)
-    trunk.encoder.reset_parameters()  # the PointNet keeps its own init (pretrained weights load over it)
+    if not trunk.image:
+        trunk.encoder.reset_parameters()  # the PointNet keeps its own init (pretrained weights load over it)
 
-    trunk_module = TensorDictModule(trunk, in_keys=[POINTS_KEY, STATE_KEY], out_keys=[HIDDEN_KEY])
+    trunk_module = TensorDictModule(trunk, in_keys=[input_key(encoder), STATE_KEY], out_keys=[HIDDEN_KEY])
     log_std = AddStateIndependentNormalScale(action_dim, init_value=init_log_std)  # scale = exp(log_std)
     loc_scale = TensorDictModule(nn.Sequential(policy_net, log_std), in_keys=[HIDDEN_KEY], out_keys=["loc", "scale"])
     action_spec = Bounded(low=-1.0, high=1.0, shape=(action_dim,), dtype=torch.float32)
@@ -135,6 +143,16 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
                                      default_interaction_type=ExplorationType.RANDOM)  # eval: set DETERMINISTIC
     value_head = ValueOperator(value_net, in_keys=[HIDDEN_KEY])  # writes "state_value" (..., 1)
     return ActorValueOperator(trunk_module, policy_head, value_head)
+
+
+def input_key(encoder: str) -> str:
+    """The observation an encoder reads: the point cloud, or the depth image for ``depth_cnn``."""
+    return IMAGE_KEY if encoder == "depth_cnn" else POINTS_KEY
+
+
+def encoder_label(encoder: str) -> str:
+    """How reports name an encoder: "small PointNet", ..., or "depth-image CNN"."""
+    return "depth-image CNN" if encoder == "depth_cnn" else f"{encoder} PointNet"
 
 
 def trunk_of(actor_critic: ActorValueOperator) -> Trunk:

@@ -16,7 +16,7 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
-from dexart_lite.models.actor_critic import HEAD_HIDDEN, POINTS_KEY, STATE_KEY, make_actor_critic
+from dexart_lite.models.actor_critic import HEAD_HIDDEN, IMAGE_KEY, POINTS_KEY, STATE_KEY, make_actor_critic
 
 FILE_FORMAT = "dexart_lite.ppo"
 FILE_VERSION = 1
@@ -59,6 +59,16 @@ def architecture(dims: dict) -> dict:
     return {"head": tuple(dims.get("head", HEAD_HIDDEN)), "normalize": bool(dims.get("normalize", False))}
 
 
+def observation_kwargs(payload: dict) -> dict:
+    """The env keywords that give a checkpoint's network the observation it was trained on: its cloud
+    size, the imagined points (on unless switched off) and, for the 2-D baseline, the depth image."""
+    cfg = payload["config"]
+    kwargs = {"num_points": cfg["num_points"], "imagination": cfg.get("imagination", True)}
+    if cfg.get("encoder") == "depth_cnn":
+        kwargs["depth_image"] = True
+    return kwargs
+
+
 def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "checkpoint") -> ActorValueOperator:
     """The actor-critic described by ``payload["dims"]`` with its weights loaded strictly."""
     dims, cfg = payload["dims"], payload["config"]
@@ -78,6 +88,8 @@ def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.nda
 
     def act(obs: dict) -> np.ndarray:
         td = TensorDict({POINTS_KEY: torch.as_tensor(obs["point_cloud"]), STATE_KEY: torch.as_tensor(obs["state"])}, [])
+        if "depth_image" in obs:  # the 2-D baseline's input (env depth_image=True)
+            td[IMAGE_KEY] = torch.as_tensor(obs["depth_image"])
         with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
             return policy(td)["action"].clamp(-1.0, 1.0).numpy()
 

@@ -25,7 +25,7 @@ from torchrl.modules import ActorValueOperator
 from dexart_lite import objects as objects_lib
 from dexart_lite import render
 from dexart_lite.registration import HORIZON, TASKS
-from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, policy_function
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, observation_kwargs, policy_function
 from dexart_lite.rl.env import make_env, torch_threads
 from dexart_lite.utils import check_choice
 
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     actor_critic = actor_critic_from_checkpoint(payload, args.ckpt)
     cfg = payload["config"]
     check_choice("task", cfg["task"], TASKS)
-    env_kwargs = {"num_points": cfg["num_points"], "imagination": cfg.get("imagination", True)}
+    env_kwargs = observation_kwargs(payload)
     if cfg.get("max_episode_steps"):
         env_kwargs["max_episode_steps"] = cfg["max_episode_steps"]
     result = evaluate(actor_critic, cfg["task"], args.split, args.episodes_per_object, args.seed, env_kwargs)

@@ -176,3 +176,19 @@ def test_depth_image_student_the_2d_baseline(tmp_path):
         distill_lib.validate(tiny_distill_config(tmp_path, encoder="depth_cnn", pretrained=str(tmp_path / "x.pt")))
     with pytest.raises(ValueError, match="valid choices: small, medium, large, depth_cnn"):
         distill_lib.validate(tiny_distill_config(tmp_path, encoder="resnet"))
+
+
+def test_pretrain_study_prepares_encoders_and_loads_them(tmp_path):
+    """The pretrain study pretrains one encoder per method (fast mode: tiny datasets, one epoch), reports
+    their metrics, and each arm's student starts from its method's encoder, loaded strictly."""
+    metrics = study.prepare_pretrained("laptop", tmp_path, progress=False)
+    assert set(metrics) == {"seg", "cls", "recon", "simsiam"}
+    assert 0.0 <= metrics["seg"]["val"]["miou"] <= 1.0 and metrics["cls"]["data"].startswith("objects-only")
+    for method in metrics:
+        cfg = study.arm_config(study.STUDIES["pretrain"], method, "laptop", 0, tmp_path)
+        assert cfg.pretrained == str(tmp_path / "pretrained" / method / "encoder.pt") and not cfg.normalize_points
+        distill_lib.validate(cfg)  # the file exists
+    scratch = study.arm_config(study.STUDIES["pretrain"], "scratch", "laptop", 0, tmp_path)
+    assert scratch.pretrained is None and not scratch.normalize_points  # the arms differ in the encoder only
+    again = study.prepare_pretrained("laptop", tmp_path, progress=False)  # read back, not redone
+    assert again == metrics

@@ -179,3 +179,36 @@ def test_same_seed_gives_the_same_episode_in_two_fresh_processes():
     runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
                            env={**os.environ, "PYTHONHASHSEED": str(seed)}).stdout.strip() for seed in (1, 2)]
     assert len(runs[0]) == 64 and runs[0] == runs[1]
+
+
+def test_shaped_reward_adds_named_stage2_terms_to_dexarts():
+    """reward="shaped": DexArt's terms unchanged (same seed, same actions, same physics) plus three
+    stage-2 terms computed from the state by hand; the reward is still the sum of the terms."""
+    from dexart_lite.experts import ScriptedPolicy
+
+    envs = {mode: make("laptop", object_names=["laptop_11cbb00f39"], num_points=32, reward=mode, max_episode_steps=120)
+            for mode in ("dexart", "shaped")}
+    obs = {m: e.reset(seed=0)[0] for m, e in envs.items()}
+    expert = ScriptedPolicy(envs["shaped"])
+    stage2 = 0
+    for _ in range(120):
+        action = expert(obs["shaped"])
+        out = {m: e.step(action) for m, e in envs.items()}
+        obs = {m: o[0] for m, o in out.items()}
+        plain, shaped = out["dexart"][4]["reward_terms"], out["shaped"][4]["reward_terms"]
+        assert set(shaped) - set(plain) == {"shape_touch", "shape_reach", "shape_progress"}
+        assert all(shaped[k] == plain[k] for k in plain)
+        assert out["shaped"][1] == pytest.approx(sum(shaped.values()))
+        s, info = envs["shaped"].unwrapped._state, out["shaped"][4]
+        if info["stage"] == 2:
+            stage2 += 1
+            assert shaped["shape_touch"] == pytest.approx(0.05 * s.part_contact.sum())
+            assert shaped["shape_reach"] == pytest.approx(-0.1 * min(s.dist, 0.5))
+            assert shaped["shape_progress"] == pytest.approx(0.5 * max(info["progress"], 0.0))
+        else:
+            assert shaped["shape_touch"] == shaped["shape_reach"] == shaped["shape_progress"] == 0.0
+        if out["shaped"][2] or out["shaped"][3]:
+            break
+    assert stage2 > 10
+    with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped"):
+        make("laptop", reward="dense")

@@ -26,6 +26,7 @@ from dexart_lite import objects as objects_lib
 from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK, ArticulatedObjects
 from dexart_lite.camera import CameraPose, viewpoint
+from dexart_lite.envs import rewards
 from dexart_lite.objects import ObjectInfo
 from dexart_lite.robot import ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, Robot, RobotState
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
@@ -90,6 +91,7 @@ class DexArtEnv(gym.Env):
     num_points, imagination, point_noise, camera_noise: point-cloud settings (``SensorConfig``);
     view_range: ``(azimuth, polar)`` half-widths in degrees of a random camera viewpoint drawn at every
     reset on DexArt's viewpoint sphere (``camera.viewpoint``); None (default): the fixed camera;
+    reward: "dexart" (DexArt's terms) or "shaped" (plus ``rewards.shaping``'s stage-2 terms, not DexArt's);
     depth_image: also observe the camera's metric depth image, ``obs["depth_image"]`` (64, 64) float32 m
     (0 where nothing is hit), the input of the 2-D baseline (not part of DexArt's observation);
     randomize: DexArt's object pose randomisation; dt, frame_skip, solver_iterations: physics;
@@ -112,7 +114,7 @@ class DexArtEnv(gym.Env):
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
                  view_range=None, depth_image: bool = False, randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
-                 render_mode: str | None = None, **unknown):
+                 reward: str = "dexart", render_mode: str | None = None, **unknown):
         if unknown:
             valid = [n for n in inspect.signature(DexArtEnv.__init__).parameters if n not in ("self", "unknown")]
             raise ValueError(f"unknown keyword(s) {sorted(unknown)}; valid keywords: {', '.join(valid)}")
@@ -126,6 +128,8 @@ class DexArtEnv(gym.Env):
                              [o.name for s in ("seen", "unseen") for o in objects_lib.list_objects(self.CATEGORY, s)])
         if num_points < 1 or frame_skip < 1 or dt <= 0:
             raise ValueError("num_points and frame_skip must be >= 1 and dt > 0")
+        check_choice("reward", reward, rewards.REWARD_MODES)
+        self.reward_mode = reward
         self.render_mode, self.randomize, self.frame_skip = render_mode, randomize, int(frame_skip)
         self.control_dt = dt * frame_skip
         self.sim = BulletSim(dt=dt, solver_iterations=solver_iterations)
@@ -311,7 +315,8 @@ class DexArtEnv(gym.Env):
         stage, progress, success = self.stage(s), self.progress(s), self.is_success(s)
         return {"stage": stage, "progress": float(progress), "success": bool(success),
                 "object_name": s.obj.name, "sim_unstable": s.unstable,
-                "reward_terms": self.reward_terms(s, stage, progress, success)}
+                "reward_terms": self.reward_terms(s, stage, progress, success) | (
+                    rewards.shaping(s, stage, progress) if self.reward_mode == "shaped" else {})}
 
     def _observe(self, s: State, info: dict) -> dict:
         cloud = self.sensor.observe(self.np_random)

@@ -42,6 +42,7 @@ from dexart_lite.imitation.demos import load_demos
 from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, action_log_std, encoder_of, make_actor_critic,
                                              set_action_log_std)
 from dexart_lite.models.pointnet import ENCODER_SIZES, load_encoder
+from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import architecture, load_checkpoint, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
@@ -78,6 +79,8 @@ class PPOConfig:
     adam_eps: float = 1e-5
     normalize_advantage: bool = field(default=True, metadata={"help": "per minibatch, as SB3"})
     split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
+    reward: str = field(default="dexart", metadata={"help": "dexart, or shaped: plus stage-2 terms toward the grasp "
+                        "(envs.rewards.shaping; not DexArt's); evaluation reports success either way"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250); for quick tests"})
     seed: int = 0
@@ -117,6 +120,8 @@ class PPOConfig:
     def env_kwargs(self) -> dict:
         """Keyword arguments of the env that the training, evaluation and GIF envs share."""
         kwargs = {"num_points": self.num_points}
+        if self.reward != "dexart":
+            kwargs["reward"] = self.reward
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
@@ -158,6 +163,7 @@ def validate(cfg: PPOConfig) -> None:
     check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
     check_choice("backend", cfg.backend, BACKENDS)
     check_choice("training split", cfg.split, ("seen", "seen_half"))
+    check_choice("reward", cfg.reward, REWARD_MODES)
     for name in ("frames", "frames_per_batch", "epochs", "minibatch", "num_points", "checkpoint_every"):
         if getattr(cfg, name) < 1:
             raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")

@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -215,13 +216,26 @@ def camera_grid(task: str) -> list[tuple[int, int, object]]:
     return [(a, p, viewpoint(base, np.deg2rad(a), np.deg2rad(p))) for p in VIEW_POLARS for a in VIEW_AZIMUTHS]
 
 
-def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unseen")) -> dict:
-    """Success of the student in ``cfg.out`` under every camera of ``camera_grid``: ``{split: 5 x 7 list}``
-    (rows polar, columns azimuth), deterministic actions, the run's evaluation seed and env settings
-    (camera perturbation and point noise included). Written to ``cfg.out/viewpoints.json``; read back
-    if it exists with the same settings."""
+def _evaluate_camera(checkpoint: str, task: str, split: str, episodes: int, seed: int, env_kwargs: dict) -> float:
+    """One cell of the viewpoint grid (a worker process's job): the checkpoint's success under one camera."""
+    import torch
+
     from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
     from dexart_lite.rl.evaluate import evaluate
+
+    torch.set_num_threads(1)
+    student = actor_critic_from_checkpoint(load_checkpoint(checkpoint), checkpoint)
+    return evaluate(student, task, split, episodes, seed, env_kwargs)["success_rate"]
+
+
+def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unseen"), workers: int | None = None) -> dict:
+    """Success of the student in ``cfg.out`` under every camera of ``camera_grid``: ``{split: 5 x 7 list}``
+    (rows polar, columns azimuth), deterministic actions, the run's evaluation seed and env settings
+    (camera perturbation and point noise included). Each cell seeds its own env, so the cells run in
+    ``workers`` processes (default: one per core) with the same result as one after the other. Written
+    to ``cfg.out/viewpoints.json``; read back if it exists with the same settings."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
 
     out = Path(cfg.out)
     path = out / VIEWPOINTS
@@ -231,17 +245,18 @@ def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unse
         done = json.loads(path.read_text())
         if done["settings"] == settings:
             return done
-    payload = load_checkpoint(out / "checkpoint.pt")
-    student = actor_critic_from_checkpoint(payload, out / "checkpoint.pt")
     start = time.perf_counter()
+    cells = [(a, p, split, {**cfg.env_kwargs(), "camera": pose}) for a, p, pose in camera_grid(cfg.task) for split in splits]
+    args = [(str(out / "checkpoint.pt"), cfg.task, split, episodes_per_object, cfg.eval_seed, kwargs)
+            for _, _, split, kwargs in cells]
+    workers = max(1, workers or os.cpu_count() or 1)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        rates = list(pool.map(_evaluate_camera, *zip(*args)))
     grid = {split: np.zeros((len(VIEW_POLARS), len(VIEW_AZIMUTHS))) for split in splits}
-    for a, p, pose in camera_grid(cfg.task):
-        for split in splits:
-            res = evaluate(student, cfg.task, split, episodes_per_object, cfg.eval_seed,
-                           {**cfg.env_kwargs(), "camera": pose})
-            grid[split][VIEW_POLARS.index(p), VIEW_AZIMUTHS.index(a)] = res["success_rate"]
+    for (a, p, split, _), rate in zip(cells, rates):
+        grid[split][VIEW_POLARS.index(p), VIEW_AZIMUTHS.index(a)] = rate
     result = {"settings": settings, "success": {split: g.tolist() for split, g in grid.items()},
-              "wall_time_s": round(time.perf_counter() - start, 1)}
+              "wall_time_s": round(time.perf_counter() - start, 1), "workers": workers}
     write_json(path, result)
     return result
 

@@ -118,9 +118,14 @@ def test_viewpoint_evaluation_fills_the_grid(tmp_path, monkeypatch):
     distill_lib.distill(cfg)
     few = [(a, p, pose) for a, p, pose in study.camera_grid("laptop") if (a, p) in ((0, 0), (60, -20))]
     monkeypatch.setattr(study, "camera_grid", lambda task: few)
-    result = study.evaluate_viewpoints(cfg, 1, splits=("seen",))
+    result = study.evaluate_viewpoints(cfg, 1, splits=("seen",), workers=2)
     grid = np.array(result["success"]["seen"])
     assert grid.shape == (5, 7) and np.isfinite(grid).all()
+    # a cell computed in a worker process is the one computed here, in this process
+    a, p, pose = few[1]
+    here = study._evaluate_camera(str(tmp_path / "run" / "checkpoint.pt"), "laptop", "seen", 1, cfg.eval_seed,
+                                  {**cfg.env_kwargs(), "camera": pose})
+    assert grid[study.VIEW_POLARS.index(p), study.VIEW_AZIMUTHS.index(a)] == here
     assert json.loads((tmp_path / "run" / study.VIEWPOINTS).read_text())["success"] == result["success"]
 
 

@@ -131,6 +131,8 @@ def run_arm(cfg) -> dict:
     out = Path(cfg.out)
     record = out / RESULT
     settings = dataclasses.asdict(cfg)
+    if not record.exists():
+        _reuse_identical_run(out, settings)
     if record.exists():
         done = json.loads(record.read_text())
         if done["config"] == settings:
@@ -149,6 +151,29 @@ def run_arm(cfg) -> dict:
     keep["config"] = settings
     write_json(record, keep)
     return {**keep, "resumed": False}
+
+
+def _reuse_identical_run(out: Path, settings: dict) -> None:
+    """Copy into ``out`` a finished run of another study under the same parent folder whose settings are
+    ``settings`` but for ``out`` (e.g. the objects study's ``seen`` arm is the encoder study's ``small`` arm
+    and the imagination study's ``with`` arm): the same seed and settings give the same run, so it is not
+    trained twice. The copy's ``run.json`` names the run it came from (``reused_from``)."""
+    import shutil
+
+    studies = out.parent.parent.parent  # <parent>/<study>/<arm>/seed<k>
+    for record in sorted(studies.glob(f"*/*/{out.name}/{RESULT}")):
+        if record.parent.resolve() == out.resolve():
+            continue
+        done = json.loads(record.read_text())
+        if {**done["config"], "out": settings["out"]} != settings:
+            continue
+        if out.exists():  # an interrupted run of its own
+            shutil.rmtree(out)
+        shutil.copytree(record.parent, out, ignore=shutil.ignore_patterns(VIEWPOINTS))
+        done["config"] = settings
+        done["reused_from"] = done.get("reused_from", str(record.parent))
+        write_json(out / RESULT, done)
+        return
 
 
 # Pretraining for the pretrain study (``prepare_pretrained``): DexArt's recipes with CPU-sized epochs
@@ -316,7 +341,8 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
         entry["frames"] = [r["expert_frames"] + r["student_frames"] for r in per_seed]
         entry["per_seed"] = [{k: r[k] for k in ("seed", "seen_success", "unseen_success", "expert_frames",
                                                 "student_frames", "wall_time_s", "mean_max_stage", "per_object",
-                                                "resumed")} for r in per_seed]
+                                                "resumed")} | ({"reused_from": r["reused_from"]} if "reused_from" in r else {})
+                            for r in per_seed]
         if study.name == "objects":  # the seen split in two: the seen_half objects and the other six
             half = {info.name for info in objects_lib.list_objects(task, "seen_half")}
             for group, keep in (("seen_half_objects", lambda n: n in half), ("other_seen_objects", lambda n: n not in half)):

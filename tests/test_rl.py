@@ -318,3 +318,34 @@ def test_demo_rejects_a_non_positive_budget(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "--minutes must be > 0" in err and len(err.splitlines()) == 1
     assert not any(tmp_path.iterdir())
+
+
+def test_state_only_diagnostic_never_renders_and_trains_an_mlp(tmp_path, monkeypatch):
+    """--obs state: the state vector (32 on Laptop) plus the 15 documented privileged entries, no camera
+    call at any reset or step, and PPO trains and evaluates an MLP actor-critic on it."""
+    from dexart_lite.camera import DepthCamera
+    from dexart_lite.envs import make
+    from dexart_lite.envs.base import PRIVILEGED_STATE
+
+    def no_camera(*args, **kwargs):
+        raise AssertionError("the state-only observation rendered the camera")
+
+    monkeypatch.setattr(DepthCamera, "render_depth", no_camera)
+    env = make("laptop", observation="state", num_points=32, max_episode_steps=5)
+    obs, _ = env.reset(seed=0)
+    assert set(obs) == {"state"} and obs["state"].shape == (32 + PRIVILEGED_STATE,) == (47,)
+    s = env.unwrapped._state
+    extra = obs["state"][32:]
+    np.testing.assert_allclose(extra[9:12], [s.q, s.obj.joint_init, s.obj.joint_target], atol=1e-6)
+    np.testing.assert_allclose(extra[12:], s.handle_pos - np.asarray(env.unwrapped.ROBOT_BASE), atol=1e-6)
+    for _ in range(5):
+        obs, *_ = env.step(env.action_space.sample())
+    env.close()
+    cfg = tiny_config(tmp_path, obs="state", frames=200, frames_per_batch=100, minibatch=50, workers=0,
+                      eval_episodes=1)
+    result = ppo.train(cfg)
+    assert result["frames"] == 200 and 0.0 <= result["eval"]["seen"]["success_rate"] <= 1.0
+    net = actor_critic_from_checkpoint(load_checkpoint(result["checkpoint"]), result["checkpoint"])
+    assert net.module[0].module.encoder is None and net.module[0].in_keys == ["observation"]
+    with pytest.raises(ValueError, match="valid choices: cloud, state"):
+        ppo.validate(tiny_config(tmp_path, obs="image"))

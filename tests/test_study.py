@@ -71,6 +71,31 @@ def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, monkeypatch)
                         progress=False)
 
 
+def test_an_arm_identical_to_another_studys_finished_arm_is_reused_not_retrained(tmp_path, monkeypatch):
+    calls = []
+    real = distill_lib.distill
+
+    def counting(cfg):
+        calls.append((cfg.encoder, cfg.imagination))
+        return real(cfg)
+
+    monkeypatch.setattr(distill_lib, "distill", counting)
+    overrides = {"objects": OBJECT, "max_episode_steps": 6}
+    first = study.run_study("encoder", "laptop", [0], tmp_path / "encoder", arms=["small"], overrides=overrides,
+                            progress=False)
+    # the imagination study's "with" arm has the encoder study's "small" settings: copied, not trained again
+    second = study.run_study("imagination", "laptop", [0], tmp_path / "imagination", overrides=overrides,
+                             progress=False)
+    assert calls == [("small", True), ("small", False)]
+    reused = second["arms"]["with"]["per_seed"][0]
+    assert reused["reused_from"] == str(tmp_path / "encoder" / "small" / "seed0")
+    assert reused["seen_success"] == first["arms"]["small"]["seen_success"]
+    assert "reused_from" not in second["arms"]["without"]["per_seed"][0]
+    copied = json.loads((tmp_path / "imagination" / "with" / "seed0" / study.RESULT).read_text())
+    assert copied["config"]["out"] == str(tmp_path / "imagination" / "with" / "seed0")
+    assert (tmp_path / "imagination" / "with" / "seed0" / "checkpoint.pt").exists()
+
+
 def test_camera_grid_puts_the_camera_where_the_angles_say():
     grid = study.camera_grid("laptop")
     assert len(grid) == 35 and len({(a, p) for a, p, _ in grid}) == 35

@@ -30,7 +30,7 @@ from dexart_lite.envs import rewards
 from dexart_lite.objects import ObjectInfo
 from dexart_lite.robot import ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, Robot, RobotState
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
-from dexart_lite.registration import HORIZON  # control steps per episode (the registered max_episode_steps)
+from dexart_lite.registration import HORIZON, OBSERVATIONS  # HORIZON: control steps per episode (the registered max_episode_steps)
 from dexart_lite.sim import BASE_LINK, BulletSim
 from dexart_lite.utils import check_choice
 
@@ -41,6 +41,7 @@ MAX_OBJECT_SPEED = 10.0  # m/s
 TABLE_HALF_EXTENTS = (0.65, 0.65, 0.025)  # m, top surface at z = 0
 TABLE_RGBA, PEDESTAL_RGBA = (0.8, 0.75, 0.65, 1.0), (0.5, 0.5, 0.5, 1.0)
 VIEWER_SIZE = (320, 240)  # px, env.render()
+PRIVILEGED_STATE = 15  # entries the state-only observation appends (DexArtEnv.privileged_state)
 
 
 @dataclass(frozen=True)
@@ -91,6 +92,8 @@ class DexArtEnv(gym.Env):
     num_points, imagination, point_noise, camera_noise: point-cloud settings (``SensorConfig``);
     view_range: ``(azimuth, polar)`` half-widths in degrees of a random camera viewpoint drawn at every
     reset on DexArt's viewpoint sphere (``camera.viewpoint``); None (default): the fixed camera;
+    observation: "cloud" (DexArt's: point cloud + state) or "state" (a diagnostic, not DexArt's: the state
+    vector with the privileged object state appended, ``privileged_state``, and no camera render at all);
     reward: "dexart" (DexArt's terms) or "shaped" (plus ``rewards.shaping``'s stage-2 terms, not DexArt's);
     depth_image: also observe the camera's metric depth image, ``obs["depth_image"]`` (64, 64) float32 m
     (0 where nothing is hit), the input of the 2-D baseline (not part of DexArt's observation);
@@ -114,7 +117,7 @@ class DexArtEnv(gym.Env):
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
                  view_range=None, depth_image: bool = False, randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
-                 reward: str = "dexart", render_mode: str | None = None, **unknown):
+                 reward: str = "dexart", observation: str = "cloud", render_mode: str | None = None, **unknown):
         if unknown:
             valid = [n for n in inspect.signature(DexArtEnv.__init__).parameters if n not in ("self", "unknown")]
             raise ValueError(f"unknown keyword(s) {sorted(unknown)}; valid keywords: {', '.join(valid)}")
@@ -129,7 +132,8 @@ class DexArtEnv(gym.Env):
         if num_points < 1 or frame_skip < 1 or dt <= 0:
             raise ValueError("num_points and frame_skip must be >= 1 and dt > 0")
         check_choice("reward", reward, rewards.REWARD_MODES)
-        self.reward_mode = reward
+        check_choice("observation", observation, OBSERVATIONS)
+        self.reward_mode, self.observation = reward, observation
         self.render_mode, self.randomize, self.frame_skip = render_mode, randomize, int(frame_skip)
         self.control_dt = dt * frame_skip
         self.sim = BulletSim(dt=dt, solver_iterations=solver_iterations)
@@ -163,12 +167,16 @@ class DexArtEnv(gym.Env):
         self._arm_links = set(self.robot.arm_links)
         self._contact_force = CONTACT_IMPULSE / dt  # N
         n_pts = self.sensor_config.total_points
-        self.observation_space = spaces.Dict({
-            "point_cloud": spaces.Box(-np.inf, np.inf, (n_pts, 3), np.float32),
-            "imagined_mask": spaces.MultiBinary(n_pts),
-            "state": spaces.Box(-np.inf, np.inf, (self.state_dim,), np.float32),
-        })
-        if depth_image:
+        if observation == "state":  # the diagnostic: the privileged object state instead of any camera
+            self.observation_space = spaces.Dict({
+                "state": spaces.Box(-np.inf, np.inf, (self.state_dim + PRIVILEGED_STATE,), np.float32)})
+        else:
+            self.observation_space = spaces.Dict({
+                "point_cloud": spaces.Box(-np.inf, np.inf, (n_pts, 3), np.float32),
+                "imagined_mask": spaces.MultiBinary(n_pts),
+                "state": spaces.Box(-np.inf, np.inf, (self.state_dim,), np.float32),
+            })
+        if depth_image and observation == "cloud":
             intr = self.sensor_config.intrinsics
             self.observation_space["depth_image"] = spaces.Box(0.0, np.inf, (intr.height, intr.width), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
@@ -319,16 +327,29 @@ class DexArtEnv(gym.Env):
                     rewards.shaping(s, stage, progress) if self.reward_mode == "shaped" else {})}
 
     def _observe(self, s: State, info: dict) -> dict:
-        cloud = self.sensor.observe(self.np_random)
-        info["point_labels"] = self._labels = cloud.labels
         r = s.robot
         vector = np.concatenate([r.qpos, r.palm_linvel, r.palm_angvel, r.palm_pos, self.extra_state(s),
                                  [s.t / s.horizon]])
+        if self.observation == "state":  # no render at all
+            info["point_labels"] = self._labels = np.zeros(0, np.int64)
+            return {"state": np.concatenate([vector, self.privileged_state(s)]).astype(np.float32)}
+        cloud = self.sensor.observe(self.np_random)
+        info["point_labels"] = self._labels = cloud.labels
         obs = {"point_cloud": cloud.points, "imagined_mask": cloud.imagined.astype(np.int8),
                "state": vector.astype(np.float32)}
         if cloud.depth_image is not None:
             obs["depth_image"] = cloud.depth_image
         return obs
+
+    def privileged_state(self, s: State) -> np.ndarray:
+        """What the state-only diagnostic adds to the state vector (``PRIVILEGED_STATE`` entries): the
+        functional part's position from the robot base (3, m) and the first two columns of its rotation
+        (6), its joint angle, initial angle and target (3, rad), and the grasp point from the robot base (3, m)."""
+        pos, quat = self.sim.link_frames(self.objects.body, [PART_LINK])
+        rot = pc.quat_to_matrix(quat[0])
+        base = np.asarray(self.ROBOT_BASE, float)
+        return np.concatenate([pos[0] - base, rot[:, 0], rot[:, 1], [s.q, s.obj.joint_init, s.obj.joint_target],
+                               s.handle_pos - base])
 
     def _scenery_can_occlude(self, pose: CameraPose) -> bool:
         """Whether the table or the pedestal could hide a point of the crop box from this camera.

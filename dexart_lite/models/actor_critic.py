@@ -34,8 +34,9 @@ from dexart_lite.models.pointnet import ENCODER_SIZES, FEATURE_DIM, PointNetEnco
 POINTS_KEY = "point_cloud"  # (..., N, 3) float32, robot-base frame, m
 STATE_KEY = "observation"  # the env's "state" vector; torchrl's GymWrapper renames "state" to "observation"
 IMAGE_KEY = "depth_image"  # (..., 64, 64) float32, m: the 2-D baseline's input (env depth_image=True)
-# the trunk's encoders: DexArt's three PointNets, and the 2-D baseline's CNN on the depth image
-ENCODERS = (*ENCODER_SIZES, "depth_cnn")
+# the trunk's encoders: DexArt's three PointNets, the 2-D baseline's CNN on the depth image, and "none"
+# (the state-only diagnostic: the state MLP alone, on a state vector that carries the object's pose)
+ENCODERS = (*ENCODER_SIZES, "depth_cnn", "none")
 HIDDEN_KEY = "hidden"  # (..., 320) trunk output
 STATE_HIDDEN = 64
 HEAD_HIDDEN = (64, 64)
@@ -54,10 +55,13 @@ class Trunk(nn.Module):
         super().__init__()
         # the 2-D baseline reads the depth image instead of the cloud (the point normalisation then stays unused)
         self.image = encoder_size == "depth_cnn"
-        self.encoder = DepthCNN() if self.image else PointNetEncoder(encoder_size)
+        if encoder_size == "none":
+            self.encoder = None
+        else:
+            self.encoder = DepthCNN() if self.image else PointNetEncoder(encoder_size)
         self.state_mlp = nn.Sequential(nn.Linear(state_dim, STATE_HIDDEN), nn.ReLU(),
                                        nn.Linear(STATE_HIDDEN, STATE_HIDDEN))
-        self.out_dim = FEATURE_DIM + STATE_HIDDEN
+        self.out_dim = (0 if self.encoder is None else FEATURE_DIM) + STATE_HIDDEN
         self.normalize = normalize
         if normalize:
             self.register_buffer("state_loc", torch.zeros(state_dim))
@@ -86,8 +90,14 @@ class Trunk(nn.Module):
         self.point_loc.copy_(flat.mean(0))
         self.point_scale.copy_(flat.std(0).mean().clamp_min(1e-3).reshape(1))
 
-    def forward(self, points: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
-        """points (..., N, 3) (the 2-D baseline: a depth image (..., 64, 64)), state (..., D) -> (..., 320)."""
+    def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
+        """points (..., N, 3) (the 2-D baseline: a depth image (..., 64, 64)), state (..., D) -> (..., 320);
+        with no encoder, state (..., D) alone -> (..., 64)."""
+        points, state = (None, inputs[0]) if self.encoder is None else inputs
+        if self.encoder is None:
+            if self.normalize:
+                state = (state - self.state_loc) / self.state_scale * self.state_mask
+            return self.state_mlp(state)
         if self.normalize:
             if not self.image:
                 points = (points - self.point_loc) / self.point_scale
@@ -130,10 +140,11 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
     orthogonal_init(value_net[:-1], math.sqrt(2))
     orthogonal_init(policy_net[-1], 0.01)
     orthogonal_init(value_net[-1], 1.0)
-    if not trunk.image:
+    if isinstance(trunk.encoder, PointNetEncoder):
         trunk.encoder.reset_parameters()  # the PointNet keeps its own init (pretrained weights load over it)
 
-    trunk_module = TensorDictModule(trunk, in_keys=[input_key(encoder), STATE_KEY], out_keys=[HIDDEN_KEY])
+    in_keys = [STATE_KEY] if encoder == "none" else [input_key(encoder), STATE_KEY]
+    trunk_module = TensorDictModule(trunk, in_keys=in_keys, out_keys=[HIDDEN_KEY])
     log_std = AddStateIndependentNormalScale(action_dim, init_value=init_log_std)  # scale = exp(log_std)
     loc_scale = TensorDictModule(nn.Sequential(policy_net, log_std), in_keys=[HIDDEN_KEY], out_keys=["loc", "scale"])
     action_spec = Bounded(low=-1.0, high=1.0, shape=(action_dim,), dtype=torch.float32)
@@ -152,7 +163,7 @@ def input_key(encoder: str) -> str:
 
 def encoder_label(encoder: str) -> str:
     """How reports name an encoder: "small PointNet", ..., or "depth-image CNN"."""
-    return "depth-image CNN" if encoder == "depth_cnn" else f"{encoder} PointNet"
+    return {"depth_cnn": "depth-image CNN", "none": "state MLP"}.get(encoder, f"{encoder} PointNet")
 
 
 def trunk_of(actor_critic: ActorValueOperator) -> Trunk:

@@ -66,13 +66,20 @@ def observation_kwargs(payload: dict) -> dict:
     kwargs = {"num_points": cfg["num_points"], "imagination": cfg.get("imagination", True)}
     if cfg.get("encoder") == "depth_cnn":
         kwargs["depth_image"] = True
+    if cfg.get("obs", "cloud") != "cloud":
+        kwargs["observation"] = cfg["obs"]
     return kwargs
+
+
+def network_encoder(cfg: dict) -> str:
+    """The trunk's encoder of a run's config: ``encoder``, or "none" for the state-only observation."""
+    return "none" if cfg.get("obs", "cloud") == "state" else cfg["encoder"]
 
 
 def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "checkpoint") -> ActorValueOperator:
     """The actor-critic described by ``payload["dims"]`` with its weights loaded strictly."""
     dims, cfg = payload["dims"], payload["config"]
-    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg["encoder"],
+    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], network_encoder(cfg),
                                      **architecture(dims))
     try:
         actor_critic.load_state_dict(payload["model"], strict=True)
@@ -87,7 +94,9 @@ def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.nda
     policy = actor_critic.get_policy_operator()
 
     def act(obs: dict) -> np.ndarray:
-        td = TensorDict({POINTS_KEY: torch.as_tensor(obs["point_cloud"]), STATE_KEY: torch.as_tensor(obs["state"])}, [])
+        td = TensorDict({STATE_KEY: torch.as_tensor(obs["state"])}, [])
+        if "point_cloud" in obs:  # absent from the state-only observation
+            td[POINTS_KEY] = torch.as_tensor(obs["point_cloud"])
         if "depth_image" in obs:  # the 2-D baseline's input (env depth_image=True)
             td[IMAGE_KEY] = torch.as_tensor(obs["depth_image"])
         with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):

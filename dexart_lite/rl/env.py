@@ -88,9 +88,11 @@ def make_env(task: str, *, seed: int | None = None, point_noise: bool = True, ca
 
 
 def env_dims(env) -> tuple[int, int, int]:
-    """``(num_points, state_dim, action_dim)`` of a torchrl env from ``make_env``."""
+    """``(num_points, state_dim, action_dim)`` of a torchrl env from ``make_env`` (0 points for the
+    state-only observation)."""
     obs = env.observation_spec
-    return obs["point_cloud"].shape[-2], obs["observation"].shape[-1], env.action_spec.shape[-1]
+    points = obs["point_cloud"].shape[-2] if "point_cloud" in obs.keys() else 0
+    return points, obs["observation"].shape[-1], env.action_spec.shape[-1]
 
 
 @contextlib.contextmanager

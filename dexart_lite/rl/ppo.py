@@ -43,8 +43,8 @@ from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, action_log_s
                                              set_action_log_std)
 from dexart_lite.models.pointnet import ENCODER_SIZES, load_encoder
 from dexart_lite.envs.rewards import REWARD_MODES
-from dexart_lite.registration import TASKS
-from dexart_lite.rl.checkpoint import architecture, load_checkpoint, save_checkpoint
+from dexart_lite.registration import OBSERVATIONS, TASKS
+from dexart_lite.rl.checkpoint import architecture, load_checkpoint, network_encoder, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.utils import check_choice
 
@@ -79,6 +79,9 @@ class PPOConfig:
     adam_eps: float = 1e-5
     normalize_advantage: bool = field(default=True, metadata={"help": "per minibatch, as SB3"})
     split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
+    obs: str = field(default="cloud", metadata={"help": "cloud (DexArt: point cloud + state, PointNet) or state: a "
+                     "diagnostic, the state vector plus the privileged object state and no camera, an MLP policy "
+                     "(--encoder is then unused); it measures how learnable a task's reward is apart from perception"})
     reward: str = field(default="dexart", metadata={"help": "dexart, or shaped: plus stage-2 terms toward the grasp "
                         "(envs.rewards.shaping; not DexArt's); evaluation reports success either way"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
@@ -122,6 +125,8 @@ class PPOConfig:
         kwargs = {"num_points": self.num_points}
         if self.reward != "dexart":
             kwargs["reward"] = self.reward
+        if self.obs != "cloud":
+            kwargs["observation"] = self.obs
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
@@ -164,6 +169,9 @@ def validate(cfg: PPOConfig) -> None:
     check_choice("backend", cfg.backend, BACKENDS)
     check_choice("training split", cfg.split, ("seen", "seen_half"))
     check_choice("reward", cfg.reward, REWARD_MODES)
+    check_choice("observation", cfg.obs, OBSERVATIONS)
+    if cfg.obs == "state" and (cfg.pretrained or cfg.freeze_encoder):
+        raise ValueError("--obs state has no PointNet: drop --pretrained / --freeze-encoder")
     for name in ("frames", "frames_per_batch", "epochs", "minibatch", "num_points", "checkpoint_every"):
         if getattr(cfg, name) < 1:
             raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
@@ -310,7 +318,7 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     num_points, state_dim, action_dim = env_dims(probe)
     probe.close()
     arch, weights = initial_weights(cfg, state_dim, action_dim)
-    actor_critic = make_actor_critic(state_dim, action_dim, cfg.encoder, cfg.init_log_std, **arch)
+    actor_critic = make_actor_critic(state_dim, action_dim, network_encoder(asdict(cfg)), cfg.init_log_std, **arch)
     if weights is not None:  # strict: every weight of the student, the input normalisation included
         actor_critic.load_state_dict(weights, strict=True)
         set_action_log_std(actor_critic, cfg.init_log_std)  # the student's log-std was never trained (MSE)
@@ -364,7 +372,7 @@ def advantages(data, learner: Learner, reward_scale: float = 1.0):
             data["next", "reward"] = data["next", "reward"] * reward_scale
         add_next_values(data, learner.value_operator)
         learner.gae(data)
-    return data.reshape(-1).select(*BATCH_KEYS)
+    return data.reshape(-1).select(*BATCH_KEYS, strict=False)
 
 
 def bc_weight(cfg: PPOConfig, batch: int) -> float:

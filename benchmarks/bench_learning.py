@@ -2,6 +2,8 @@
 
     python benchmarks/bench_learning.py --task laptop --frames 1000000
     python benchmarks/bench_learning.py --task laptop --frames 1000000 --resume   # continue an interrupted run
+    python benchmarks/bench_learning.py --task laptop --preset cpu --tag state_shaped_s0 \
+        --set obs=state reward=shaped lr=3e-4 reward_scale=0.01 --init-log-std -1.2 --frames 300000
 
 Trains with ``dexart_lite.rl.ppo.train`` (the faithful preset unless ``--preset cpu``) into
 ``--out`` (default ``runs/learning_<task>``), then writes ``benchmarks/results/learning_<task>.json``
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import dexart_lite
 from dexart_lite.rl import ppo
-from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
+from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json
 
 RESULTS = Path(__file__).parent / "results"
 # DexArt Table 2, no pre-training, success seen / unseen (mean over 3 seeds)
@@ -42,19 +44,27 @@ def main(argv=None) -> dict:
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json")
     parser.add_argument("--init-log-std", type=float, default=0.0, help="initial log std of the actions (DexArt: 0)")
+    parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
+                        help="other PPOConfig fields, e.g. obs=state reward=shaped lr=3e-4 (needs --tag)")
     args = parser.parse_args(argv)
     name = f"learning_{args.task}" + (f"_{args.tag}" if args.tag else "")
     out = args.out or Path("runs") / name
-    overrides = {}
+    requested = parse_overrides(args.overrides, ppo.PPOConfig)
+    if requested and not args.tag:
+        raise ValueError("--set needs a --tag (its results must not overwrite the defaults' learning_<task>.json)")
+    overrides = dict(requested)
     if fast_mode():  # a smoke run of the script itself, not evidence
-        overrides = dict(frames_per_batch=400, minibatch=200, epochs=1, num_points=64, max_episode_steps=20)
+        overrides.update(frames_per_batch=400, minibatch=200, epochs=1, num_points=64, max_episode_steps=20)
         args.frames, args.eval_episodes = min(args.frames, 800), 1
         if args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
             args.results = out / "results"
-    cfg = ppo.preset(args.preset, task=args.task, frames=args.frames, encoder=args.encoder, workers=args.workers,
-                     seed=args.seed, eval_episodes=args.eval_episodes, out=str(out), resume=args.resume,
-                     init_log_std=args.init_log_std,
-                     progress=not fast_mode(), **overrides)
+    fields = dict(task=args.task, frames=args.frames, encoder=args.encoder, workers=args.workers, seed=args.seed,
+                  eval_episodes=args.eval_episodes, out=str(out), resume=args.resume, init_log_std=args.init_log_std,
+                  progress=not fast_mode())
+    clash = sorted(set(requested) & set(fields))
+    if clash:
+        raise ValueError(f"--set {', '.join(clash)}: use the script's own option(s) instead")
+    cfg = ppo.preset(args.preset, **{**fields, **overrides})
     result = ppo.train(cfg)
 
     args.results.mkdir(parents=True, exist_ok=True)
@@ -73,7 +83,7 @@ def main(argv=None) -> dict:
                                  "frames": PAPER_FRAMES[args.task]},
         "collect_fps": result["frames"] / max(sum(h["collect_s"] for h in history), 1e-9),
         "update_fps": result["frames"] / max(sum(h["update_s"] for h in history), 1e-9),
-        "curve": curve.name, "preset": args.preset, "config": {k: v for k, v in vars(cfg).items()},
+        "curve": curve.name, "preset": args.preset, "departures_from_preset": requested, "config": {k: v for k, v in vars(cfg).items()},
         "curve_points": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "stage3_frac", "wall_s")}
                          for h in history],
         "last_batches": history[-3:], "seen": seen, "unseen": unseen,

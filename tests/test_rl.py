@@ -6,6 +6,7 @@ import json
 import math
 import shutil
 import socket
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -349,3 +350,25 @@ def test_state_only_diagnostic_never_renders_and_trains_an_mlp(tmp_path, monkeyp
     assert net.module[0].module.encoder is None and net.module[0].in_keys == ["observation"]
     with pytest.raises(ValueError, match="valid choices: cloud, state"):
         ppo.validate(tiny_config(tmp_path, obs="image"))
+
+
+def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch):
+    """benchmarks/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
+    it needs --tag, and fields the script sets itself are refused."""
+    import importlib.util
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_learning.py"
+    spec = importlib.util.spec_from_file_location("bench_learning", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    out = tmp_path / "run"
+    with pytest.raises(ValueError, match="needs a --tag"):
+        bench.main(["--set", "obs=state", "--out", str(out)])
+    with pytest.raises(ValueError, match="--set frames: use the script's own option"):
+        bench.main(["--set", "frames=10", "--tag", "x", "--out", str(out)])
+    summary = bench.main(["--preset", "cpu", "--workers", "0", "--tag", "state", "--out", str(out),
+                          "--set", "obs=state", "reward=shaped", "reward_scale=0.01"])
+    assert summary["departures_from_preset"] == {"obs": "state", "reward": "shaped", "reward_scale": 0.01}
+    assert summary["config"]["obs"] == "state" and summary["config"]["reward_scale"] == 0.01
+    assert (out / "results" / "learning_laptop_state.json").is_file()  # fast mode never writes the committed results

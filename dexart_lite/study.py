@@ -397,9 +397,11 @@ def markdown_table(result: dict) -> str:
             test = m["test"][key] if m.get("test") and key in m["test"] else float("nan")
             lines.append(f"| {method} | {m['data']} | {m['epochs']} | {key} | {m['val'][key]:.3g} | {test:.3g} |")
     if result["study"] == "objects":
-        lines += ["", "The seen split in two (mean ± std over seeds): the 5 `seen_half` laptops, on which both arms "
-                  "train, and the other 6 seen laptops, on which only `seen` trains:", "",
-                  "| arm | the 5 seen_half objects | the other 6 seen objects |", "|---|---|---|"]
+        task = result["task"]
+        half, seen = (len(objects_lib.list_objects(task, split)) for split in ("seen_half", "seen"))
+        lines += ["", f"The seen split in two (mean ± std over seeds): the {half} `seen_half` {task} objects, on which "
+                  f"both arms train, and the other {seen - half} seen ones, on which only `seen` trains:", "",
+                  f"| arm | the {half} seen_half objects | the other {seen - half} seen objects |", "|---|---|---|"]
         lines += [f"| {arm} | {a['seen_half_objects_success']:.2f} ± {a['seen_half_objects_success_std']:.2f} | "
                   f"{a['other_seen_objects_success']:.2f} ± {a['other_seen_objects_success_std']:.2f} |"
                   for arm, a in result["arms"].items()]

@@ -103,13 +103,9 @@ class PointCloudSensor:
 
     def observe(self, rng: np.random.Generator) -> PointCloud:
         cfg = self.config
-        image = None
-        if cfg.depth_image:  # one frame for both the cloud and the image
-            depth, seg = self.camera.render_depth()
-            image = self.camera.depth_image(depth, seg)
-            points, labels = self.visible_points(depth, seg)
-        else:
-            points, labels = self.visible_points()
+        depth, seg = self.camera.render_depth()
+        image = self.camera.depth_image(depth, seg) if cfg.depth_image else None  # the cloud's own frame
+        points, labels = self.visible_points(depth, seg)
         idx = pc.sample_indices(len(points), cfg.num_points, rng)
         if len(idx) == 0:  # nothing in view (e.g. a far-off camera override): zeros, label -1
             obs_points = np.zeros((cfg.num_points, 3), np.float32)

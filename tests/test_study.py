@@ -40,22 +40,29 @@ def test_objects_arms_share_the_data_budget(tmp_path):
     assert half.out.endswith("seen_half/seed0") and full.out.endswith("seen/seed0")
 
 
-def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, monkeypatch):
+@pytest.fixture
+def distilled(monkeypatch):
+    """The configs ``distill`` is called with (it still runs): which runs a study trained, not read back."""
     calls = []
     real = distill_lib.distill
 
     def counting(cfg):
-        calls.append((cfg.encoder, cfg.seed))
+        calls.append(cfg)
         return real(cfg)
 
     monkeypatch.setattr(distill_lib, "distill", counting)
+    return calls
+
+
+def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, distilled):
     overrides = {"objects": OBJECT, "max_episode_steps": 6}
     study.run_study("encoder", "laptop", [0], tmp_path, arms=["small"], overrides=overrides, progress=False)
-    assert calls == [("small", 0)]
+    assert [(c.encoder, c.seed) for c in distilled] == [("small", 0)]
     first = (tmp_path / "small" / "seed0" / study.RESULT).stat().st_mtime_ns
     result = study.run_study("encoder", "laptop", [0], tmp_path, arms=["small", "medium"], overrides=overrides,
                              progress=False)
-    assert calls == [("small", 0), ("medium", 0)]  # the finished arm was read back, not run again
+    # the finished arm was read back, not run again
+    assert [(c.encoder, c.seed) for c in distilled] == [("small", 0), ("medium", 0)]
     assert (tmp_path / "small" / "seed0" / study.RESULT).stat().st_mtime_ns == first
     assert [r["resumed"] for a in ("small", "medium") for r in result["arms"][a]["per_seed"]] == [True, False]
     saved = json.loads((tmp_path / "study.json").read_text())
@@ -71,22 +78,14 @@ def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, monkeypatch)
                         progress=False)
 
 
-def test_an_arm_identical_to_another_studys_finished_arm_is_reused_not_retrained(tmp_path, monkeypatch):
-    calls = []
-    real = distill_lib.distill
-
-    def counting(cfg):
-        calls.append((cfg.encoder, cfg.imagination))
-        return real(cfg)
-
-    monkeypatch.setattr(distill_lib, "distill", counting)
+def test_an_arm_identical_to_another_studys_finished_arm_is_reused_not_retrained(tmp_path, distilled):
     overrides = {"objects": OBJECT, "max_episode_steps": 6}
     first = study.run_study("encoder", "laptop", [0], tmp_path / "encoder", arms=["small"], overrides=overrides,
                             progress=False)
     # the imagination study's "with" arm has the encoder study's "small" settings: copied, not trained again
     second = study.run_study("imagination", "laptop", [0], tmp_path / "imagination", overrides=overrides,
                              progress=False)
-    assert calls == [("small", True), ("small", False)]
+    assert [(c.encoder, c.imagination) for c in distilled] == [("small", True), ("small", False)]
     reused = second["arms"]["with"]["per_seed"][0]
     assert reused["reused_from"] == str(tmp_path / "encoder" / "small" / "seed0")
     assert reused["seen_success"] == first["arms"]["small"]["seen_success"]

@@ -321,10 +321,11 @@ class DexArtEnv(gym.Env):
 
     def _evaluate(self, s: State) -> dict:
         stage, progress, success = self.stage(s), self.progress(s), self.is_success(s)
+        terms = self.reward_terms(s, stage, progress, success)
+        if self.reward_mode == "shaped":
+            terms.update(rewards.shaping(s, stage, progress))
         return {"stage": stage, "progress": float(progress), "success": bool(success),
-                "object_name": s.obj.name, "sim_unstable": s.unstable,
-                "reward_terms": self.reward_terms(s, stage, progress, success) | (
-                    rewards.shaping(s, stage, progress) if self.reward_mode == "shaped" else {})}
+                "object_name": s.obj.name, "sim_unstable": s.unstable, "reward_terms": terms}
 
     def _observe(self, s: State, info: dict) -> dict:
         r = s.robot

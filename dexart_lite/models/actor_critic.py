@@ -93,16 +93,16 @@ class Trunk(nn.Module):
     def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
         """points (..., N, 3) (the 2-D baseline: a depth image (..., 64, 64)), state (..., D) -> (..., 320);
         with no encoder, state (..., D) alone -> (..., 64)."""
-        points, state = (None, inputs[0]) if self.encoder is None else inputs
-        if self.encoder is None:
-            if self.normalize:
-                state = (state - self.state_loc) / self.state_scale * self.state_mask
-            return self.state_mlp(state)
+        *points, state = inputs  # points: [] without an encoder
         if self.normalize:
-            if not self.image:
-                points = (points - self.point_loc) / self.point_scale
             state = (state - self.state_loc) / self.state_scale * self.state_mask
-        return torch.cat([self.encoder(points), self.state_mlp(state)], dim=-1)
+        features = self.state_mlp(state)
+        if self.encoder is None:
+            return features
+        points = points[0]
+        if self.normalize and not self.image:
+            points = (points - self.point_loc) / self.point_scale
+        return torch.cat([self.encoder(points), features], dim=-1)
 
 
 def mlp(in_dim: int, hidden: tuple[int, ...], out_dim: int) -> nn.Sequential:

@@ -99,6 +99,42 @@ def test_a_seed_replays_in_the_same_env_after_a_long_episode(task):
         np.testing.assert_array_equal(x, y)
 
 
+def episode_after_another_object(task, steps_before):
+    """(states of seed 123's first 30 steps in a fresh env, the same after an episode of
+    ``steps_before`` steps on another object)."""
+    fresh = make(task, **SMALL)
+    target = fresh.reset(seed=123)[1]["object_name"]
+    other = next(n for n in fresh.unwrapped.objects.names if n != target)
+    actions = random_actions(30, seed=3)
+    expected = [fresh.step(a)[0]["state"].copy() for a in actions]
+    fresh.close()
+    env = make(task, **SMALL)
+    env.reset(seed=0, options={"object": other})
+    for action in random_actions(steps_before, seed=4):
+        env.step(0.3 * action)
+    assert env.reset(seed=123)[1]["object_name"] == target
+    got = [env.step(a)[0]["state"].copy() for a in actions]
+    env.close()
+    return expected, got
+
+
+@pytest.mark.parametrize("task", ["faucet", "bucket", "laptop", "toilet"])
+def test_an_episode_does_not_depend_on_the_previous_episodes_object(task):
+    """The same seed after a 50-step episode on another object = the same seed in a fresh env
+    (evaluations visit the objects in turn)."""
+    for x, y in zip(*episode_after_another_object(task, steps_before=50)):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.xfail(strict=True, reason="known defect, the cause of Faucet's check_env failure: Bullet keeps state "
+                   "that saveState/restoreState miss (not found yet); see the note in DexArtEnv.reset")
+def test_a_faucet_episode_after_a_reset_on_another_faucet_replays():
+    """Strict xfail: passes (and so fails here) once the defect is fixed; then put Faucet back into
+    test_gymnasium_check_env_passes. Measured: 0.034 rad apart within 30 steps."""
+    for x, y in zip(*episode_after_another_object("faucet", steps_before=0)):
+        np.testing.assert_array_equal(x, y)
+
+
 def test_bad_actions_raise_and_do_not_break_the_env(env):
     env.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
@@ -144,8 +180,8 @@ def test_render_returns_an_rgb_image():
     env.close()
 
 
-# Faucet is left out: it fails the checker's step determinism in some test orders and passes in others,
-# a known defect (Bullet state that saveState and the body states do not show; see the README).
+# Faucet is left out: the checker resets on other faucets without stepping before its determinism check,
+# and a faucet episode after such a reset differs (the strict xfail below; see DexArtEnv.reset).
 @pytest.mark.parametrize("env_id", ["DexArtLite/Bucket-v0", "DexArtLite/Laptop-v0", "DexArtLite/Toilet-v0"])
 @pytest.mark.filterwarnings("ignore:.*Box observation space m")  # the state vector is unbounded on purpose
 def test_gymnasium_check_env_passes(env_id):

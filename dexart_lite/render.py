@@ -10,15 +10,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Callable
-
 import numpy as np
 from PIL import Image, ImageDraw
 
 import dexart_lite
+from dexart_lite.rollout import Policy, run_episodes
 from dexart_lite.utils import check_choice
-
-Policy = Callable[[dict], np.ndarray]  # observation -> action (22,)
 
 
 def annotate(frame: np.ndarray, lines: list[str]) -> Image.Image:
@@ -40,23 +37,31 @@ def save_gif(frames: list[Image.Image], path: Path | str, fps: float = 12.5) -> 
     return path
 
 
-def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = None, every: int = 2,
-                   max_steps: int | None = None) -> tuple[list[Image.Image], dict]:
-    """Run one episode of a ``render_mode="rgb_array"`` env; returns annotated frames and a summary."""
-    obs, info = env.reset(seed=seed, options=options)
-    frames, total, success, step = [], 0.0, False, 0
-    done = False
-    while not done and (max_steps is None or step < max_steps):
-        if step % every == 0:
-            frames.append(annotate(env.render(), [f"{info['object_name']}  t={step}",
-                                                  f"stage {info['stage']}  progress {info['progress']:.2f}",
-                                                  f"return {total:.2f}" + ("  SUCCESS" if success else "")]))
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
-        total, success, step = total + reward, success or info["success"], step + 1
-        done = terminated or truncated
-    frames.append(annotate(env.render(), [f"{info['object_name']}  t={step}", f"stage {info['stage']}",
-                                          f"return {total:.2f}" + ("  SUCCESS" if success else "")]))
-    return frames, {"return": total, "success": success, "steps": step, "object_name": info["object_name"]}
+def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = None,
+                   every: int = 2) -> tuple[list[Image.Image], dict]:
+    """Run one episode of a ``render_mode="rgb_array"`` env (the rollout layer's loop) and return
+    annotated frames (every ``every`` steps and the last) and a summary."""
+    frames, so_far = [], {"return": 0.0, "success": False}
+
+    def shoot(info: dict, t: int) -> None:
+        frames.append(annotate(env.render(), [f"{info['object_name']}  t={t}",
+                                              f"stage {info['stage']}  progress {info['progress']:.2f}",
+                                              f"return {so_far['return']:.2f}" + ("  SUCCESS" if so_far["success"] else "")]))
+
+    def on_step(obs, action, reward, next_obs, info, t):
+        so_far["return"] += reward
+        so_far["success"] = so_far["success"] or bool(info["success"])
+        if (t + 1) % every == 0:
+            shoot(info, t + 1)
+
+    name = (options or {}).get("object")
+    episode = run_episodes(policy, env, [(seed, name)], on_step=on_step, on_reset=lambda obs, info: shoot(info, 0))[0]
+    if episode["steps"] % every == 0:  # the last step's frame is replaced by the final one
+        frames.pop()
+    frames.append(annotate(env.render(), [f"{episode['object']}  t={episode['steps']}", f"stage {episode['stages'][-1]}",
+                                          f"return {episode['return']:.2f}" + ("  SUCCESS" if episode["success"] else "")]))
+    return frames, {"return": episode["return"], "success": episode["success"], "steps": episode["steps"],
+                    "object_name": episode["object"]}
 
 
 def make_policy(name: str, env, seed: int = 0) -> Policy:

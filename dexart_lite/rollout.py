@@ -1,4 +1,4 @@
-"""One episode loop for the gymnasium envs, shared by expert demonstrations, DAgger and scripts.
+"""One episode loop for the gymnasium envs, shared by evaluation, GIF recording, expert demonstrations, DAgger and scripts.
 
     episodes = [(seed, "laptop_11cbb00f39"), (seed + 1, "laptop_cfd3b8b3b2")]
     results = run_episodes(policy, env, episodes, on_step=recorder)
@@ -26,7 +26,8 @@ OnStep = Callable[[dict, np.ndarray, float, dict, dict, int], None]
 def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on_step: OnStep | None = None,
                  progress: bool = False, desc: str | None = None,
                  on_reset: Callable[[dict, dict], None] | None = None) -> list[dict]:
-    """Run one episode per ``(seed, object_name)`` pair (``object_name`` None: drawn by the seed).
+    """Run one episode per ``(seed, object_name)`` pair (``object_name`` None: drawn by the seed;
+    ``seed`` None: the env's RNG goes on from the previous reset instead of being seeded again).
 
     ``on_reset(obs, info)`` is called after each reset, ``on_step`` after each step (see ``OnStep``).
     Returns one dict per episode: object, seed, success (at any step), max_stage (highest stage,
@@ -34,7 +35,7 @@ def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on
     """
     results = []
     for seed, name in tqdm(episodes, desc=desc, unit="episode", disable=not progress, dynamic_ncols=True):
-        obs, info = env.reset(seed=int(seed), options={"object": name} if name else None)
+        obs, info = env.reset(seed=None if seed is None else int(seed), options={"object": name} if name else None)
         if hasattr(policy, "reset"):
             policy.reset()
         if on_reset is not None:
@@ -51,7 +52,7 @@ def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on
             max_stage = max(max_stage, stages[-1])
             total += float(reward)
             obs, done, t = next_obs, terminated or truncated, t + 1
-        results.append({"object": info["object_name"], "seed": int(seed), "success": success,
+        results.append({"object": info["object_name"], "seed": seed, "success": success,
                         "max_stage": max_stage, "return": total, "steps": t, "stages": stages})
     return results
 

@@ -180,6 +180,22 @@ def test_render_returns_an_rgb_image():
     env.close()
 
 
+@pytest.mark.parametrize("steps", [7, 8])
+def test_a_recorded_episode_is_the_rollout_layers_episode_with_a_frame_every_two_steps(steps):
+    from dexart_lite.render import record_episode
+    from dexart_lite.rollout import run_episodes
+
+    policy = lambda obs: np.r_[[0.2, 0.0, -0.2, 0.0, 0.0, 0.0], np.zeros(16)]  # noqa: E731
+    env = make("laptop", render_mode="rgb_array", max_episode_steps=steps, **SMALL)
+    frames, summary = record_episode(env, policy, seed=3, every=2)
+    episode = run_episodes(policy, env, [(3, None)])[0]
+    env.close()
+    assert len(frames) == 5  # t = 0, 2, 4, 6 and the last step (7 or 8)
+    assert frames[0].size == (320, 240)
+    assert summary == {"return": episode["return"], "success": episode["success"], "steps": steps,
+                       "object_name": episode["object"]}
+
+
 # Faucet is left out: the checker resets on other faucets without stepping before its determinism check,
 # and a faucet episode after such a reset differs (the strict xfail below; see DexArtEnv.reset).
 @pytest.mark.parametrize("env_id", ["DexArtLite/Bucket-v0", "DexArtLite/Laptop-v0", "DexArtLite/Toilet-v0"])

@@ -17,16 +17,15 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-import torch
-from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
 from dexart_lite import objects as objects_lib
 from dexart_lite import render
-from dexart_lite.registration import HORIZON, TASKS
+from dexart_lite.envs import make as make_gym_env
+from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, observation_kwargs, policy_function
-from dexart_lite.rl.env import make_env, torch_threads
+from dexart_lite.rl.env import torch_threads
+from dexart_lite.rollout import per_object_summary, run_episodes
 from dexart_lite.utils import check_choice
 
 SPLITS = ("seen", "unseen", "seen_half")
@@ -34,37 +33,23 @@ SPLITS = ("seen", "unseen", "seen_half")
 
 def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", episodes_per_object: int = 10,
              seed: int = 100, env_kwargs: dict | None = None) -> dict:
-    """Success per object and overall; see the module docstring. ``env_kwargs`` go to ``make_env``."""
+    """Success per object and overall; see the module docstring. ``env_kwargs`` go to the gymnasium env
+    (``dexart_lite.envs.make``); the episodes run in the rollout layer (``dexart_lite.rollout``)."""
     check_choice("split", split, SPLITS)
     if episodes_per_object < 1:
         raise ValueError(f"episodes_per_object must be >= 1, got {episodes_per_object}")
     names = [info.name for info in objects_lib.list_objects(task, split)]
-    env = make_env(task, split=split, **(env_kwargs or {}))
-    env.set_seed(seed)
-    policy = actor_critic.get_policy_operator()
-    episodes = {name: [] for name in names}
+    env = make_gym_env(task, split=split, **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
+    # The env RNG is seeded once, by a reset (as torchrl's set_seed did when evaluations ran through
+    # torchrl: the committed evaluations replay episode for episode); the episodes draw from it in turn.
+    env.reset(seed=seed)
+    rounds = [(None, name) for _ in range(episodes_per_object) for name in names]
     start = time.perf_counter()
-    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC), torch_threads(1):
-        for _ in range(episodes_per_object):
-            for name in names:
-                reset = env.reset(options={"object": name})
-                rollout = env.rollout(HORIZON, policy, auto_reset=False, tensordict=reset, break_when_any_done=True)
-                last = rollout[-1]["next"]
-                episodes[name].append({"success": bool(last["episode_success"]),
-                                       "max_stage": int(last["episode_max_stage"]),
-                                       "return": float(last["episode_reward"]), "steps": int(last["step_count"])})
+    with torch_threads(1):
+        episodes = run_episodes(policy_function(actor_critic), env, rounds)
     env.close()
-    per_object = {name: summarize(eps) for name, eps in episodes.items()}
-    every = [ep for eps in episodes.values() for ep in eps]
     return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
-            **summarize(every), "objects": per_object, "wall_time_s": round(time.perf_counter() - start, 1)}
-
-
-def summarize(episodes: list[dict]) -> dict:
-    return {"success_rate": float(np.mean([e["success"] for e in episodes])),
-            "mean_max_stage": float(np.mean([e["max_stage"] for e in episodes])),
-            "mean_return": float(np.mean([e["return"] for e in episodes])),
-            "mean_steps": float(np.mean([e["steps"] for e in episodes])), "episodes": len(episodes)}
+            **per_object_summary(episodes), "wall_time_s": round(time.perf_counter() - start, 1)}
 
 
 def markdown_table(results: list[dict]) -> str:
@@ -82,8 +67,6 @@ def markdown_table(results: list[dict]) -> str:
 def record_gif(actor_critic: ActorValueOperator, task: str, path: str | Path, split: str = "seen",
                object_name: str | None = None, seed: int = 100, env_kwargs: dict | None = None) -> dict:
     """Render one deterministic evaluation episode to a GIF; returns its summary."""
-    from dexart_lite.envs import make as make_gym_env
-
     env = make_gym_env(task, split=split, render_mode="rgb_array",
                        **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
     options = {"object": object_name} if object_name else None

@@ -405,8 +405,12 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
     for _ in range(cfg.epochs):
         for idx in torch.randperm(flat.numel()).split(cfg.minibatch):
             loss_td = learner.loss_module(flat[idx])
-            if not warmup and cfg.target_kl is not None and float(loss_td["kl_approx"]) > 1.5 * cfg.target_kl:
-                break  # SB3's early stop: this minibatch already sees a policy too far from the collecting one
+            # SB3's early stop: this minibatch already sees a policy too far from the collecting one. Not
+            # before the first step: the policy is then the collecting one, and its KL is float32 noise
+            # (measured 7.6e-8 between the collection's and the loss's log-probabilities).
+            if (not warmup and steps > 0 and cfg.target_kl is not None
+                    and float(loss_td["kl_approx"]) > 1.5 * cfg.target_kl):
+                break
             if warmup:
                 loss = loss_td["loss_critic"]
             else:

@@ -226,10 +226,11 @@ class DexArtEnv(gym.Env):
         # the restored configuration drops those first. Without it, a long episode changed the first
         # step of the next one by ~0.02 rad; now episodes replay exactly, with two known exceptions
         # (Bullet keeps some state that saveState does not cover; a fresh env replays exactly): the
-        # bucket's light bail drifts by ~1e-4 rad within 50 steps, and on faucets (rarely toilets) an
-        # episode that follows a reset on another object *without a step in between* can differ by
-        # ~0.03 rad (tests/test_envs.py). Not the cause, measured: the moved object's broadphase box,
-        # stale pairs (more collision passes), the solver's residual threshold, a step at reset.
+        # bucket's light bail drifts by ~1e-4 rad within 50 steps, and an episode can depend on the
+        # previous episode's object: on faucets mostly after a reset on another faucet without a step
+        # in between (~0.03 rad within 30 steps), on toilets rarely (README, tests/test_envs.py). Not
+        # the cause, measured: the moved object's broadphase box, stale pairs (more collision passes),
+        # the solver's residual threshold, a simulation step at reset.
         self.sim.restore_state(self._initial_state)
         self.sim.c.performCollisionDetection()
         self.sim.restore_state(self._initial_state)

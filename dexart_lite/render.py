@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
 import numpy as np
 from PIL import Image, ImageDraw
 
@@ -44,9 +45,9 @@ def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = No
     frames, so_far = [], {"return": 0.0, "success": False}
 
     def shoot(info: dict, t: int) -> None:
+        status = f"return {so_far['return']:.2f}" + ("  SUCCESS" if so_far["success"] else "")
         frames.append(annotate(env.render(), [f"{info['object_name']}  t={t}",
-                                              f"stage {info['stage']}  progress {info['progress']:.2f}",
-                                              f"return {so_far['return']:.2f}" + ("  SUCCESS" if so_far["success"] else "")]))
+                                              f"stage {info['stage']}  progress {info['progress']:.2f}", status]))
 
     def on_step(obs, action, reward, next_obs, info, t):
         so_far["return"] += reward
@@ -55,11 +56,13 @@ def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = No
             shoot(info, t + 1)
 
     name = (options or {}).get("object")
-    episode = run_episodes(policy, env, [(seed, name)], on_step=on_step, on_reset=lambda obs, info: shoot(info, 0))[0]
+    episode = run_episodes(policy, env, [(seed, name)], on_step=on_step,
+                           on_reset=lambda obs, info: shoot(info, 0))[0]
     if episode["steps"] % every == 0:  # the last step's frame is replaced by the final one
         frames.pop()
-    frames.append(annotate(env.render(), [f"{episode['object']}  t={episode['steps']}", f"stage {episode['stages'][-1]}",
-                                          f"return {episode['return']:.2f}" + ("  SUCCESS" if episode["success"] else "")]))
+    status = f"return {episode['return']:.2f}" + ("  SUCCESS" if episode["success"] else "")
+    frames.append(annotate(env.render(), [f"{episode['object']}  t={episode['steps']}",
+                                          f"stage {episode['stages'][-1]}", status]))
     return frames, {"return": episode["return"], "success": episode["success"], "steps": episode["steps"],
                     "object_name": episode["object"]}
 

@@ -1,4 +1,5 @@
-"""One episode loop for the gymnasium envs, shared by evaluation, GIF recording, expert demonstrations, DAgger and scripts.
+"""One episode loop for the gymnasium envs, shared by evaluation, GIF recording, expert demonstrations,
+DAgger and scripts.
 
     episodes = [(seed, "laptop_11cbb00f39"), (seed + 1, "laptop_cfd3b8b3b2")]
     results = run_episodes(policy, env, episodes, on_step=recorder)

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import dexart_lite
-from dexart_lite.imitation.distill import METHODS, DistillConfig, distill
+from dexart_lite.imitation.distill import METHODS, DistillConfig, distill, same_settings
 from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json
 
 RESULTS = Path(__file__).parent / "results"
@@ -42,7 +42,7 @@ def run_seed(cfg: DistillConfig) -> dict:
     ckpt_log, unseen = out / "run.json", out / "eval_unseen.json"
     if unseen.exists() and ckpt_log.exists():
         done = json.loads(ckpt_log.read_text())
-        if done["config"] == asdict(cfg):
+        if same_settings(done["config"], cfg):
             print(f"{out}: finished before, read back")
             return done
         raise ValueError(f"{out} holds a run with other settings; delete it or choose another --runs folder")

@@ -126,16 +126,16 @@ def parameters(cfg) -> int:
 
 def run_arm(cfg) -> dict:
     """One distillation run, or the read-back of a finished one with the same settings (``run.json``)."""
-    from dexart_lite.imitation.distill import distill
+    from dexart_lite.imitation.distill import distill, same_settings
 
     out = Path(cfg.out)
     record = out / RESULT
     settings = dataclasses.asdict(cfg)
     if not record.exists():
-        _reuse_identical_run(out, settings)
+        _reuse_identical_run(out, cfg)
     if record.exists():
         done = json.loads(record.read_text())
-        if done["config"] == settings:
+        if same_settings(done["config"], cfg):
             return {**done, "resumed": True}
         raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
     if out.exists():  # an interrupted run: start it again from scratch
@@ -153,24 +153,26 @@ def run_arm(cfg) -> dict:
     return {**keep, "resumed": False}
 
 
-def _reuse_identical_run(out: Path, settings: dict) -> None:
+def _reuse_identical_run(out: Path, cfg) -> None:
     """Copy into ``out`` a finished run of another study under the same parent folder whose settings are
-    ``settings`` but for ``out`` (e.g. the objects study's ``seen`` arm is the encoder study's ``small`` arm
+    ``cfg``'s but for ``out`` (e.g. the objects study's ``seen`` arm is the encoder study's ``small`` arm
     and the imagination study's ``with`` arm): the same seed and settings give the same run, so it is not
     trained twice. The copy's ``run.json`` names the run it came from (``reused_from``)."""
     import shutil
+
+    from dexart_lite.imitation.distill import same_settings
 
     studies = out.parent.parent.parent  # <parent>/<study>/<arm>/seed<k>
     for record in sorted(studies.glob(f"*/*/{out.name}/{RESULT}")):
         if record.parent.resolve() == out.resolve():
             continue
         done = json.loads(record.read_text())
-        if {**done["config"], "out": settings["out"]} != settings:
+        if not same_settings({**done["config"], "out": cfg.out}, cfg):
             continue
         if out.exists():  # an interrupted run of its own
             shutil.rmtree(out)
         shutil.copytree(record.parent, out, ignore=shutil.ignore_patterns(VIEWPOINTS))
-        done["config"] = settings
+        done["config"] = dataclasses.asdict(cfg)
         done["reused_from"] = done.get("reused_from", str(record.parent))
         write_json(out / RESULT, done)
         return

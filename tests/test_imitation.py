@@ -21,7 +21,8 @@ from dexart_lite import experts
 from dexart_lite.envs import make
 from dexart_lite.imitation import demos as demos_lib
 from dexart_lite.imitation.demos import collect_demos, load_demos
-from dexart_lite.imitation.distill import DistillConfig, collect_dagger, distill, train_student, validate
+from dexart_lite.imitation.distill import (DistillConfig, collect_dagger, distill, same_settings, train_student,
+                                          validate)
 from dexart_lite.models.actor_critic import action_log_std, make_actor_critic, trunk_of
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, architecture, load_checkpoint
 from dexart_lite.rl.env import torch_threads
@@ -390,6 +391,19 @@ def test_bad_configs_name_the_valid_choices(tmp_path, overrides, message):
         validate(tiny_distill_config(tmp_path, **overrides))
 
 
+def test_a_run_recorded_before_a_field_existed_is_still_the_same_settings():
+    """Finished runs are read back by comparing configs; a field added later (here ``imagination``, as
+    if the run predated it) at its default matches a record without it, and any real difference does not."""
+    cfg = DistillConfig(task="faucet", seed=2)
+    recorded = dataclasses.asdict(cfg)
+    assert same_settings(recorded, cfg)
+    del recorded["imagination"]
+    assert same_settings(recorded, cfg)
+    assert not same_settings(recorded, dataclasses.replace(cfg, imagination=False))
+    assert not same_settings({**recorded, "seed": 3}, cfg)
+    assert not same_settings({**recorded, "a_field_we_never_had": 1}, cfg)
+
+
 def test_cli_prints_one_line_errors_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "run"
     for flags, message in ((["--method", "ppo"], "valid choices: bc, dagger"), (["--beta", "2"], "[0, 1]"),
@@ -420,6 +434,24 @@ def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys):
     again = bench.main(argv)
     assert "finished before, read back" in capsys.readouterr().out
     assert again["per_seed"][0]["wall_time_s"] == first["per_seed"][0]["wall_time_s"]
+
+
+def test_bench_student_training_smoke_trains_the_same_student_in_every_fp32_variant(tmp_path, monkeypatch):
+    """benchmarks/bench_student_training.py in fast mode: the variants that only move data or skip the
+    weight average train exactly the student fp32 trains (same loss), so their timings compare like for like."""
+    import importlib.util
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_student_training.py"
+    spec = importlib.util.spec_from_file_location("bench_student_training", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    result = bench.main(["--threads", "1", "--json", str(tmp_path / "t.json")])
+    assert json.loads((tmp_path / "t.json").read_text())["samples_per_s_best"].keys() == set(bench.VARIANTS)
+    assert result["ratio_to_fp32"]["fp32"] == 1.0
+    loss = result["loss_last_epoch"]
+    assert loss["in_memory"] == loss["fp32"] == loss["no_ema"]
+    assert abs(loss["bf16"] - loss["fp32"]) < 0.1 * loss["fp32"]
 
 
 def test_perception_probe_smoke(tmp_path, monkeypatch):

@@ -186,6 +186,14 @@ class DistillConfig:
         return names
 
 
+def same_settings(recorded: dict, cfg: DistillConfig) -> bool:
+    """Whether a finished run's recorded config (``asdict`` of its ``DistillConfig``) is ``cfg``. A field
+    added after the run was recorded counts as equal when ``cfg`` leaves it at its default, which is
+    what the run did: finished runs keep being read back when the config gains an option."""
+    settings, defaults = asdict(cfg), asdict(DistillConfig())
+    return set(recorded) <= set(settings) and all(recorded.get(k, defaults[k]) == v for k, v in settings.items())
+
+
 def validate(cfg: DistillConfig) -> None:
     """``ValueError`` naming the valid choices or range for the first bad field."""
     check_choice("task", cfg.task, TASKS)
@@ -228,6 +236,28 @@ def validate(cfg: DistillConfig) -> None:
 
 
 # ----------------------------------------------------------------------------- learning
+def build_student(cfg: DistillConfig, dims: dict, demos: TensorDictBase
+                  ) -> tuple[ActorValueOperator, AveragedModel | None, torch.nn.Module]:
+    """The untrained student of ``cfg``: ``(actor_critic, ema, aux_head)``. ``dims``: ``state_dim``,
+    ``action_dim`` and the architecture fields of a checkpoint (``rl.checkpoint.architecture``);
+    ``demos``: the demonstrations, which set the fixed input normalisation."""
+    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std,
+                                     **architecture(dims))
+    if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
+        use_points = cfg.normalize_points and cfg.encoder != "depth_cnn"
+        trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY] if use_points else None,
+                                                 cfg.dropped_state(dims["state_dim"]))
+    if cfg.pretrained:  # strict: a size or key mismatch is an error
+        load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
+    # The student that acts and is saved: an exponential moving average of the trained weights (a
+    # closed-loop policy is sensitive to the last few gradient steps; the average is steadier).
+    ema = AveragedModel(actor_critic, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema), use_buffers=True) \
+        if cfg.ema > 0 else None
+    # the auxiliary head (trunk features -> privileged object state) lives only during distillation
+    aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
+    return actor_critic, ema, aux_head
+
+
 def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig,
                   epochs: int, aux_head: torch.nn.Module | None = None, ema: AveragedModel | None = None) -> list[float]:
     """Regress the policy mean onto ``data["expert_action"]`` for ``epochs`` shuffled passes (Adam,
@@ -355,21 +385,8 @@ def distill(cfg: DistillConfig) -> dict:
         dims = {"num_points": env.observation_space["point_cloud"].shape[0],
                 "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0],
                 "head": cfg.head_widths(), "normalize": cfg.normalize}
-        actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], cfg.encoder, cfg.init_log_std,
-                                         **architecture(dims))
-        if cfg.normalize:  # from the demonstrations, once: the student's inputs keep one meaning
-            use_points = cfg.normalize_points and cfg.encoder != "depth_cnn"
-            trunk_of(actor_critic).set_normalization(demos[STATE_KEY], demos[POINTS_KEY] if use_points else None,
-                                                     cfg.dropped_state(dims["state_dim"]))
-        if cfg.pretrained:  # strict: a size or key mismatch is an error
-            load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
-        # The student that acts and is saved: an exponential moving average of the trained weights (a
-        # closed-loop policy is sensitive to the last few gradient steps; the average is steadier).
-        ema = AveragedModel(actor_critic, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema), use_buffers=True) \
-            if cfg.ema > 0 else None
+        actor_critic, ema, aux_head = build_student(cfg, dims, demos)
         student_net = ema.module if ema is not None else actor_critic
-        # the auxiliary head (trunk features -> privileged object state) lives only during distillation
-        aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
         buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
         history: list[dict] = []
         frames = {"expert": manifest["samples"], "student": 0}

@@ -550,3 +550,36 @@ def test_auto_drop_state_masks_the_velocity_on_laptop_only():
     assert DistillConfig(task="laptop").dropped_state(32) == [31, 22, 23, 24, 25, 26, 27]
     assert DistillConfig(task="faucet").dropped_state(32) == []
     assert DistillConfig(task="bucket", drop_state="time").dropped_state(33) == [32]
+
+
+def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out_template(tmp_path):
+    """benchmarks/success_by_template.py: per split and template, a run's success is the episode-weighted
+    mean over that template's objects; the unseen template-C objects form their own row."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "success_by_template.py"
+    spec = importlib.util.spec_from_file_location("success_by_template", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    runs = []
+    for r, c_success in enumerate((0.0, 1.0)):
+        run = tmp_path / f"run{r}"
+        run.mkdir()
+        for split in ("seen", "unseen"):
+            objects = {}
+            for i, info in enumerate(objects_lib.list_objects("laptop", split)):
+                success = c_success if info.template == "C" else 0.5
+                objects[info.name] = {"success_rate": success, "episodes": 1 + i % 2}  # uneven episodes
+            (run / f"eval_{split}.json").write_text(json.dumps({"task": "laptop", "objects": objects}))
+        runs.append(run)
+    result = bench.by_template(runs)
+    rows = {(row["split"], row["template"]): row for row in result["rows"]}
+    assert set(rows) == {("seen", "A"), ("seen", "B"), ("unseen", "A"), ("unseen", "B"), ("unseen", "C")}
+    assert rows[("unseen", "C")]["per_run"] == [0.0, 1.0] and rows[("unseen", "C")]["success"] == 0.5
+    assert rows[("seen", "A")]["per_run"] == [0.5, 0.5]
+    c_names = [i.name for i in objects_lib.list_objects("laptop", "unseen") if i.template == "C"]
+    assert rows[("unseen", "C")]["objects"] == len(c_names)
+    assert result["per_object"][c_names[0]]["per_run"] == [0.0, 1.0]
+    (runs[1] / "eval_unseen.json").unlink()
+    with pytest.raises(FileNotFoundError, match="no eval_unseen.json"):
+        bench.by_template(runs)

@@ -44,10 +44,13 @@ def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = No
     annotated frames (every ``every`` steps and the last) and a summary."""
     frames, so_far = [], {"return": 0.0, "success": False}
 
+    def status(so_far: dict) -> str:  # the overlay's last line
+        return f"return {so_far['return']:.2f}" + ("  SUCCESS" if so_far["success"] else "")
+
     def shoot(info: dict, t: int) -> None:
-        status = f"return {so_far['return']:.2f}" + ("  SUCCESS" if so_far["success"] else "")
         frames.append(annotate(env.render(), [f"{info['object_name']}  t={t}",
-                                              f"stage {info['stage']}  progress {info['progress']:.2f}", status]))
+                                              f"stage {info['stage']}  progress {info['progress']:.2f}",
+                                              status(so_far)]))
 
     def on_step(obs, action, reward, next_obs, info, t):
         so_far["return"] += reward
@@ -60,9 +63,8 @@ def record_episode(env, policy: Policy, seed: int = 0, options: dict | None = No
                            on_reset=lambda obs, info: shoot(info, 0))[0]
     if episode["steps"] % every == 0:  # the last step's frame is replaced by the final one
         frames.pop()
-    status = f"return {episode['return']:.2f}" + ("  SUCCESS" if episode["success"] else "")
     frames.append(annotate(env.render(), [f"{episode['object']}  t={episode['steps']}",
-                                          f"stage {episode['stages'][-1]}", status]))
+                                          f"stage {episode['stages'][-1]}", status(episode)]))
     return frames, {"return": episode["return"], "success": episode["success"], "steps": episode["steps"],
                     "object_name": episode["object"]}
 

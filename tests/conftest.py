@@ -1,6 +1,8 @@
 """Shared test set-up: fast mode for tutorials and scripts, a private cache folder per session."""
 
+import importlib.util
 import os
+from pathlib import Path
 
 import pytest
 
@@ -11,3 +13,18 @@ os.environ.setdefault("DEXART_LITE_FAST", "1")
 def _private_cache(tmp_path_factory):
     """Generated files (the composed robot URDF) go to a fresh folder, as on a new machine."""
     os.environ["DEXART_LITE_CACHE"] = str(tmp_path_factory.mktemp("dexart_cache"))
+
+
+@pytest.fixture
+def load_benchmark():
+    """``load_benchmark("bench_distill")`` -> the module of ``benchmarks/bench_distill.py`` (the benchmarks
+    are scripts, not a package, so tests load them by path)."""
+    folder = Path(__file__).resolve().parent.parent / "benchmarks"
+
+    def load(name: str):
+        spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+
+    return load

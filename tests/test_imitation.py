@@ -343,16 +343,11 @@ def test_ppo_bc_term_decays_and_bad_init_is_rejected(tiny_run, demos_dir, tmp_pa
     assert "checkpoint not found" in err and len(err.splitlines()) == 1
 
 
-def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, monkeypatch, capsys):
+def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, monkeypatch, capsys, load_benchmark):
     """The fine-tuning benchmark in fast mode: frame 0 is the student's own success, then PPO's; a second
     call reads the finished seed back instead of training again."""
-    import importlib.util
-
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_finetune.py"
-    spec = importlib.util.spec_from_file_location("bench_finetune", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_finetune")
     argv = ["--seeds", "0", "--frames", "200", "--students", str(Path(tiny_run[1]["checkpoint"]).parent),
             "--runs", str(tmp_path), "--json", str(tmp_path / "ft.json")]
     result = bench.main(argv)
@@ -414,16 +409,11 @@ def test_cli_prints_one_line_errors_and_writes_nothing(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys):
+def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys, load_benchmark):
     """benchmarks/bench_distill.py in fast mode writes the documented keys; run again, it reads the
     finished seed back instead of training it again."""
-    import importlib.util
-
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_distill.py"
-    spec = importlib.util.spec_from_file_location("bench_distill", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_distill")
     argv = ["--task", "laptop", "--seeds", "0", "--runs", str(tmp_path / "runs"), "--json", str(tmp_path / "d.json")]
     first = bench.main(argv)
     for key in ("task", "method", "seeds", "seen_success", "unseen_success", "per_seed", "expert_frames",
@@ -436,16 +426,12 @@ def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys):
     assert again["per_seed"][0]["wall_time_s"] == first["per_seed"][0]["wall_time_s"]
 
 
-def test_bench_student_training_smoke_trains_the_same_student_in_every_fp32_variant(tmp_path, monkeypatch):
+def test_bench_student_training_smoke_trains_the_same_student_in_every_fp32_variant(tmp_path, monkeypatch,
+                                                                                    load_benchmark):
     """benchmarks/bench_student_training.py in fast mode: the variants that only move data or skip the
     weight average train exactly the student fp32 trains (same loss), so their timings compare like for like."""
-    import importlib.util
-
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_student_training.py"
-    spec = importlib.util.spec_from_file_location("bench_student_training", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_student_training")
     result = bench.main(["--threads", "1", "--json", str(tmp_path / "t.json")])
     assert json.loads((tmp_path / "t.json").read_text())["samples_per_s_best"].keys() == set(bench.VARIANTS)
     assert result["ratio_to_fp32"]["fp32"] == 1.0
@@ -454,16 +440,11 @@ def test_bench_student_training_smoke_trains_the_same_student_in_every_fp32_vari
     assert abs(loss["bf16"] - loss["fp32"]) < 0.1 * loss["fp32"]
 
 
-def test_perception_probe_smoke(tmp_path, monkeypatch):
+def test_perception_probe_smoke(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/perception_probe.py in fast mode: the targets are the expert's privileged state of the
     cloud shown, and every variant reports a finite error per group for both splits."""
-    import importlib.util
-
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "perception_probe.py"
-    spec = importlib.util.spec_from_file_location("perception_probe", path)
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
+    probe = load_benchmark("perception_probe")
     out = probe.main(["--variants", "dexart", "labels", "--json", str(tmp_path / "p.json")])
     assert (tmp_path / "p.json").is_file() and out["train_samples"] > 0
     for variant in ("dexart", "labels"):
@@ -504,16 +485,11 @@ def test_bad_architecture_settings_are_rejected(tmp_path):
             validate(tiny_distill_config(tmp_path, **bad))
 
 
-def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch):
+def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch, load_benchmark):
     """benchmarks/student_failures.py: every episode lands in exactly one outcome class, the expert's
     disagreement is finite, and noise is applied (sigma 0 and 0.5 act differently)."""
-    import importlib.util
-
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "student_failures.py"
-    spec = importlib.util.spec_from_file_location("student_failures", path)
-    failures = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(failures)
+    failures = load_benchmark("student_failures")
     cfg, _ = tiny_run
     out = failures.main(["--runs", cfg.out, "--splits", "seen", "--sigmas", "0", "0.5", "--episodes-per-object", "2",
                          "--json", str(tmp_path / "f.json")])
@@ -525,14 +501,9 @@ def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch):
     assert out["rows"][0]["arm_error"] != out["rows"][1]["arm_error"]
 
 
-def test_bench_distill_variants_are_typed_and_named(tmp_path, monkeypatch):
+def test_bench_distill_variants_are_typed_and_named(tmp_path, monkeypatch, load_benchmark):
     """--set changes DistillConfig fields with their types; it needs --variant, and unknown fields are refused."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_distill.py"
-    spec = importlib.util.spec_from_file_location("bench_distill", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_distill")
     assert parse_overrides(["drop_state=time,palm_velocity", "rounds=8", "ema=0.99", "normalize=false",
                             "max_episode_steps=50"], DistillConfig) == \
         {"drop_state": "time,palm_velocity", "rounds": 8, "ema": 0.99, "normalize": False, "max_episode_steps": 50}
@@ -552,15 +523,11 @@ def test_auto_drop_state_masks_the_velocity_on_laptop_only():
     assert DistillConfig(task="bucket", drop_state="time").dropped_state(33) == [32]
 
 
-def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out_template(tmp_path):
+def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out_template(tmp_path,
+                                                                                          load_benchmark):
     """benchmarks/success_by_template.py: per split and template, a run's success is the episode-weighted
     mean over that template's objects; the unseen template-C objects form their own row."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "success_by_template.py"
-    spec = importlib.util.spec_from_file_location("success_by_template", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("success_by_template")
     runs = []
     for r, c_success in enumerate((0.0, 1.0)):
         run = tmp_path / f"run{r}"

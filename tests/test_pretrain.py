@@ -212,15 +212,9 @@ def test_cli_data_and_pretrain(dam, tmp_path, capsys):
     assert len(errors) == 3 and all(line.startswith("dexart-lite pretrain: error:") for line in errors)
 
 
-def test_bench_pretraining_smoke(tmp_path, monkeypatch):
-    import importlib.util
-    from pathlib import Path
-
+def test_bench_pretraining_smoke(tmp_path, monkeypatch, load_benchmark):
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_pretraining.py"
-    spec = importlib.util.spec_from_file_location("bench_pretraining", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_pretraining")
     assert bench.main(["--json", str(tmp_path / "bench.json"), "--threads", "1"]) == 0
     results = json.loads((tmp_path / "bench.json").read_text())
     assert set(results["methods"]) == set(pretrain.METHODS) and results["dam"]["laptop"]["ms_per_cloud"] > 0

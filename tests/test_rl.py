@@ -352,16 +352,11 @@ def test_state_only_diagnostic_never_renders_and_trains_an_mlp(tmp_path, monkeyp
         ppo.validate(tiny_config(tmp_path, obs="image"))
 
 
-def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch):
+def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
     it needs --tag, and fields the script sets itself are refused."""
-    import importlib.util
-
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_learning.py"
-    spec = importlib.util.spec_from_file_location("bench_learning", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_learning")
     out = tmp_path / "run"
     with pytest.raises(ValueError, match="needs a --tag"):
         bench.main(["--set", "obs=state", "--out", str(out)])

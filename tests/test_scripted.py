@@ -151,18 +151,13 @@ def test_laptop_expert_is_memoryless():
         env.close()
 
 
-def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch):
+def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/exploration_noise.py in fast mode: one row per split and noise level, with the
     settings it ran; noise-free, the expert solves its first object."""
-    import importlib.util
     import json
-    from pathlib import Path
 
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "exploration_noise.py"
-    spec = importlib.util.spec_from_file_location("exploration_noise", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("exploration_noise")
     out = bench.main(["--task", "faucet", "--splits", "seen", "unseen", "--json", str(tmp_path / "n.json")])
     rows = json.loads((tmp_path / "n.json").read_text())["rows"]
     assert [(r["split"], r["action_noise"]) for r in rows] == [("seen", 0.0), ("seen", 1.0), ("unseen", 0.0),

@@ -113,6 +113,7 @@ class DexArtEnv(gym.Env):
     RAND_YAW: float = 0.0  # rad, uniform [-RAND_YAW, RAND_YAW]
     TERMINATE_ON_SUCCESS: bool = True
     EXTRA_STATE: int = 0  # length of extra_state()
+    REBUILD_EVERY: int = 200  # resets between two builds of the simulation (see reset)
 
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
@@ -136,12 +137,9 @@ class DexArtEnv(gym.Env):
         self.reward_mode, self.observation = reward, observation
         self.render_mode, self.randomize, self.frame_skip = render_mode, randomize, int(frame_skip)
         self.control_dt = dt * frame_skip
-        self.sim = BulletSim(dt=dt, solver_iterations=solver_iterations)
-        camera_pose = self._camera_pose(camera)
-        self.scenery = [self.sim.create_box("table", TABLE_HALF_EXTENTS, (0, 0, -TABLE_HALF_EXTENTS[2]),
-                                            rgba=TABLE_RGBA)]
-        if self.PEDESTAL is not None:
-            self.scenery.append(self.sim.create_box("pedestal", self.PEDESTAL[1], self.PEDESTAL[0], rgba=PEDESTAL_RGBA))
+        self._physics = dict(dt=dt, solver_iterations=solver_iterations)
+        self._object_infos = infos
+        self._nominal_camera = self._camera_pose(camera)
         if view_range is not None:
             try:
                 view_range = tuple(float(np.deg2rad(float(v))) for v in view_range)
@@ -149,22 +147,16 @@ class DexArtEnv(gym.Env):
                 view_range = ()
             if len(view_range) != 2 or not all(np.isfinite(v) and v >= 0 for v in view_range):
                 raise ValueError("view_range must be (azimuth, polar) half-widths in degrees, both >= 0")
-        corners = [camera_pose] if view_range is None else \
-            [viewpoint(camera_pose, a, p) for a in (-view_range[0], view_range[0]) for p in (-view_range[1], view_range[1])]
-        if not any(self._scenery_can_occlude(pose) for pose in corners):
-            self._show_scenery(False)  # cropped away and unable to hide anything: skip its render cost
-        self.robot = Robot(self.sim, self.ROBOT_BASE, control_dt=self.control_dt)
-        self.labels = pc.LabelTable()
-        for name, link in self.robot.body.links.items():
-            self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
-        self.objects = ArticulatedObjects(self.sim, infos, self.labels)
+        corners = [self._nominal_camera] if view_range is None else \
+            [viewpoint(self._nominal_camera, a, p) for a in (-view_range[0], view_range[0])
+             for p in (-view_range[1], view_range[1])]
+        # Scenery cropped away and unable to hide anything is not drawn (it would cost render time only).
+        self._draw_scenery = any(self._scenery_can_occlude(pose) for pose in corners)
         self.sensor_config = SensorConfig(num_points=num_points, imagination=imagination, point_noise=point_noise,
                                           camera_noise=camera_noise, view_range=view_range,
                                           depth_image=bool(depth_image))
-        self.sensor = PointCloudSensor(self.sim, self.sensor_config, camera_pose, self.CROP,
-                                       self.ROBOT_BASE, self.labels, self.robot.body)
-        self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}
-        self._arm_links = set(self.robot.arm_links)
+        self.sim = None
+        self._build_world()
         self._contact_force = CONTACT_IMPULSE / dt  # N
         n_pts = self.sensor_config.total_points
         if observation == "state":  # the diagnostic: the privileged object state instead of any camera
@@ -182,7 +174,31 @@ class DexArtEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self._state: State | None = None
         self._obs: dict | None = None
+
+    def _build_world(self) -> None:
+        """A new simulation holding the scenery and the robot (objects come and go per episode), and
+        everything bound to it: segmentation labels, objects, sensor, and the snapshot every reset
+        restores. Called at construction and every ``REBUILD_EVERY`` resets (see ``reset``)."""
+        if self.sim is not None:
+            self.sim.close()
+        self.sim = BulletSim(**self._physics)
+        self.scenery = [self.sim.create_box("table", TABLE_HALF_EXTENTS, (0, 0, -TABLE_HALF_EXTENTS[2]),
+                                            rgba=TABLE_RGBA)]
+        if self.PEDESTAL is not None:
+            self.scenery.append(self.sim.create_box("pedestal", self.PEDESTAL[1], self.PEDESTAL[0], rgba=PEDESTAL_RGBA))
+        if not self._draw_scenery:
+            self._show_scenery(False)
+        self.robot = Robot(self.sim, self.ROBOT_BASE, control_dt=self.control_dt)
+        self.labels = pc.LabelTable()
+        for name, link in self.robot.body.links.items():
+            self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
+        self.objects = ArticulatedObjects(self.sim, self._object_infos, self.labels)
+        self.sensor = PointCloudSensor(self.sim, self.sensor_config, self._nominal_camera, self.CROP,
+                                       self.ROBOT_BASE, self.labels, self.robot.body)
+        self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}
+        self._arm_links = set(self.robot.arm_links)
         self._initial_state = self.sim.save_state()  # every reset starts from here (replayable)
+        self._resets_in_world = 0
 
     # ------------------------------------------------------------------ task hooks
     def progress(self, s: State) -> float:
@@ -221,17 +237,23 @@ class DexArtEnv(gym.Env):
             name = self.objects.names[int(rng.integers(len(self.objects.names)))]
         check_choice("object", name, self.objects.names)
         info = self.objects.infos[name]
-        # Back to the state saved at construction. restoreState resets the saved contact points but
-        # keeps contact manifolds made since (with their warm-start impulses), so a collision pass in
-        # the restored configuration drops those first. Without it, a long episode changed the first
-        # step of the next one by ~0.02 rad; now episodes replay exactly, with two known exceptions
-        # (Bullet keeps some state that saveState does not cover; a fresh env replays exactly): the
-        # bucket's light bail drifts by ~1e-4 rad within 50 steps, and an episode can depend on the
-        # previous episode's object: on faucets mostly after a reset on another faucet without a step
-        # in between (~0.03 rad within 30 steps), on toilets rarely (README, tests/test_envs.py). Not
-        # the cause, measured: the moved object's broadphase box, stale pairs (more collision passes),
-        # the solver's residual threshold, a simulation step at reset.
+        # Exact replay. Bullet keeps broadphase pairs and contact manifolds of a body that
+        # saveState/restoreState do not cover, and with every object loaded once and the inactive
+        # ones parked far away, an episode depended on the episodes before it (a faucet's first step
+        # differed by 0.034 rad after a reset on another faucet; gymnasium's determinism check failed
+        # on toilets on another CPU). So the world holds no object between episodes: the previous
+        # one is removed (its pairs and manifolds with it), the snapshot is restored and the new
+        # object loaded (~0.3-1.5 ms). Loading leaks the parsed shapes inside PyBullet (~140 kB per
+        # toilet load, freed only with the client), so every REBUILD_EVERY resets the whole world is
+        # built again (~0.08 s); a rebuilt world replays the same episodes (it is a fresh env's world).
+        self._resets_in_world += 1
+        if self._resets_in_world > self.REBUILD_EVERY:
+            self._build_world()
+            self._resets_in_world = 1
+        self.objects.remove_active()
         self.sim.restore_state(self._initial_state)
+        # restoreState resets the saved contact points but keeps contact manifolds made since (with
+        # their warm-start impulses); a collision pass in the restored configuration drops those.
         self.sim.c.performCollisionDetection()
         self.sim.restore_state(self._initial_state)
         position, yaw = np.add(self.ROBOT_BASE, info.position), info.yaw

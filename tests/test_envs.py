@@ -1,5 +1,7 @@
 """Contracts every task env must keep: spaces, reward = sum of named terms, seeding, bad input."""
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -270,3 +272,12 @@ def test_shaped_reward_adds_named_stage2_terms_to_dexarts():
     assert stage2 > 10
     with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped"):
         make("laptop", reward="dense")
+
+
+def test_the_reset_benchmark_times_this_checkout_and_writes_its_report(load_benchmark, tmp_path):
+    """Structure only (timings are the benchmark's business): one task, a few resets, no --ref."""
+    bench = load_benchmark("bench_reset")
+    report = bench.main(["--tasks", "laptop", "--resets", "3", "--rounds", "1", "--json", str(tmp_path / "r.json")])
+    row = report["tasks"]["laptop"]
+    assert set(row) == {"this_ms_per_reset"} and row["this_ms_per_reset"] > 0
+    assert json.loads((tmp_path / "r.json").read_text())["resets"] == 3

@@ -6,7 +6,8 @@ world holds the robot, the scenery and exactly one object. Loading is cheap (PyB
 parsed files: ~0.3 ms per laptop, ~1.5 ms per toilet, measured with ``time.perf_counter``).
 
 Why not load every object once and park the inactive ones far away (what this module did before):
-Bullet keeps broadphase and contact-cache state that ``saveState``/``restoreState`` do not cover,
+Bullet keeps state of a body that ``saveState``/``restoreState`` do not cover (most likely its
+broadphase pairs and contact caches),
 and teleporting a parked object next to the robot left pairs behind that changed the next episode
 (a faucet episode after a reset on another faucet differed by 0.034 rad in its first step, and a
 toilet failed gymnasium's determinism check on another CPU). Removing the body removes its pairs

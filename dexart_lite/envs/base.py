@@ -237,8 +237,8 @@ class DexArtEnv(gym.Env):
             name = self.objects.names[int(rng.integers(len(self.objects.names)))]
         check_choice("object", name, self.objects.names)
         info = self.objects.infos[name]
-        # Exact replay. Bullet keeps broadphase pairs and contact manifolds of a body that
-        # saveState/restoreState do not cover, and with every object loaded once and the inactive
+        # Exact replay. Bullet keeps state of a body that saveState/restoreState do not cover (most
+        # likely its broadphase pairs and contact manifolds), and with every object loaded once and the inactive
         # ones parked far away, an episode depended on the episodes before it (a faucet's first step
         # differed by 0.034 rad after a reset on another faucet; gymnasium's determinism check failed
         # on toilets on another CPU). So the world holds no object between episodes: the previous

@@ -43,13 +43,14 @@ class ArticulatedObjects:
         labels: the segmentation label table to fill (functional part 0, the rest 1).
     """
 
-    def __init__(self, sim: BulletSim, infos: list[ObjectInfo], labels: pc.LabelTable):
+    def __init__(self, sim: BulletSim, infos: list[ObjectInfo], labels: pc.LabelTable, check: bool = True):
         self.sim, self.labels = sim, labels
         self.infos = {info.name: info for info in infos}
         self.active: ObjectInfo | None = None
         self.body: Body | None = None
-        for info in infos:  # fail at construction, not in the middle of a run
-            self.sim.remove(self._load(info, (0.0, 0.0, -10.0), 0.0))
+        if check:  # fail at construction, not in the middle of a run (a rebuilt world skips it)
+            for info in infos:
+                self.sim.remove(self._load(info, (0.0, 0.0, -10.0), 0.0))
 
     @property
     def names(self) -> list[str]:
@@ -78,7 +79,7 @@ class ArticulatedObjects:
         self.remove_active()
         info = self.infos[name]
         body = self._load(info, position, yaw)
-        self.sim.reset_base(body, position, yaw_quaternion(yaw))
+        self.sim.reset_base(body, position, yaw_quaternion(yaw))  # exact: loadURDF's frame is ~1e-8 m off
         self.sim.reset_joints(body, [TASK_JOINT], [info.joint_init])
         for link in [BASE_LINK, *body.joints.values()]:
             self.labels.set(body.uid, link, pc.FUNCTIONAL if link == PART_LINK else pc.OBJECT)

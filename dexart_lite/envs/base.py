@@ -179,7 +179,8 @@ class DexArtEnv(gym.Env):
         """A new simulation holding the scenery and the robot (objects come and go per episode), and
         everything bound to it: segmentation labels, objects, sensor, and the snapshot every reset
         restores. Called at construction and every ``REBUILD_EVERY`` resets (see ``reset``)."""
-        if self.sim is not None:
+        first = self.sim is None
+        if not first:
             self.sim.close()
         self.sim = BulletSim(**self._physics)
         self.scenery = [self.sim.create_box("table", TABLE_HALF_EXTENTS, (0, 0, -TABLE_HALF_EXTENTS[2]),
@@ -192,7 +193,7 @@ class DexArtEnv(gym.Env):
         self.labels = pc.LabelTable()
         for name, link in self.robot.body.links.items():
             self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
-        self.objects = ArticulatedObjects(self.sim, self._object_infos, self.labels)
+        self.objects = ArticulatedObjects(self.sim, self._object_infos, self.labels, check=first)
         self.sensor = PointCloudSensor(self.sim, self.sensor_config, self._nominal_camera, self.CROP,
                                        self.ROBOT_BASE, self.labels, self.robot.body)
         self._group_of = {k: GROUPS.index(g) for g, ks in self.robot.group_links.items() for k in ks}
@@ -245,7 +246,7 @@ class DexArtEnv(gym.Env):
         # one is removed (its pairs and manifolds with it), the snapshot is restored and the new
         # object loaded (~0.3-1.5 ms). Loading leaks the parsed shapes inside PyBullet (~140 kB per
         # toilet load, freed only with the client), so every REBUILD_EVERY resets the whole world is
-        # built again (~0.08 s); a rebuilt world replays the same episodes (it is a fresh env's world).
+        # built again (~0.07 s); a rebuilt world replays the same episodes (it is a fresh env's world).
         self._resets_in_world += 1
         if self._resets_in_world > self.REBUILD_EVERY:
             self._build_world()

@@ -62,7 +62,7 @@ class BucketEnv(DexArtEnv):
     TERMINATE_ON_SUCCESS = False
     # A fresh simulation every episode: the light free-floating bucket resting on the table is the one
     # object that still felt the robot's contact caches of the previous episode (~1e-6 m within 50
-    # steps after an 80-step episode, DexArtEnv.reset); a build costs ~0.08 s, ~3 % of an episode.
+    # steps after an 80-step episode, DexArtEnv.reset); a build costs ~0.07 s, ~5 % of an episode.
     REBUILD_EVERY = 1
     EXTRA_STATE = 1
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import torch
 from tensordict import TensorDict
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from dexart_lite import cli
 from dexart_lite import objects as objects_lib
@@ -226,7 +227,7 @@ def synthetic_samples(n=64, points=40, state_dim=32) -> TensorDict:
                        "expert_action": torch.tanh(state[:, :22])}, [n])
 
 
-@pytest.mark.parametrize("loss", ["mse", "nll"])
+@pytest.mark.parametrize("loss", ["mse", "l1", "nll"])
 def test_train_student_fits_the_expert_labels(loss):
     torch.manual_seed(0)
     actor_critic, data = make_actor_critic(32, 22), synthetic_samples()
@@ -234,11 +235,31 @@ def test_train_student_fits_the_expert_labels(loss):
     with torch_threads(1):
         losses = train_student(actor_critic, data, DistillConfig(batch_size=16, loss=loss, lr=3e-3), epochs=30)
     assert len(losses) == 30
-    if loss == "mse":
+    if loss in ("mse", "l1"):
         assert losses[-1] < 0.5 * losses[0]
-        assert torch.equal(action_log_std(actor_critic), log_std)  # MSE leaves the log-std alone
+        assert torch.equal(action_log_std(actor_critic), log_std)  # MSE and L1 leave the log-std alone
     else:
         assert losses[-1] < losses[0] - 0.5 and not torch.equal(action_log_std(actor_critic), log_std)
+
+
+def test_l1_follows_the_majority_of_split_labels_where_mse_averages_them():
+    """One observation labelled +0.8 in 7 of 10 samples and -0.8 in 3 (an expert's two rules meeting at
+    a boundary): MSE's mean action is 0.7 * 0.8 - 0.3 * 0.8 = 0.32, L1's median the majority's 0.8."""
+    data = synthetic_samples(n=40)
+    data["point_cloud"][:] = data["point_cloud"][0]
+    data["observation"][:] = data["observation"][0]
+    data["expert_action"] = torch.full((40, 22), 0.8)
+    data["expert_action"][torch.arange(40) % 10 < 3] = -0.8
+    means = {}
+    for loss in ("mse", "l1"):
+        torch.manual_seed(0)
+        actor_critic = make_actor_critic(32, 22)
+        with torch_threads(1):
+            train_student(actor_critic, data, DistillConfig(batch_size=40, loss=loss, lr=3e-3, ema=0.0), epochs=150)
+            with set_exploration_type(ExplorationType.DETERMINISTIC):
+                means[loss] = actor_critic.get_policy_operator()(data[:1].clone())["loc"]
+    assert torch.allclose(means["mse"], torch.full_like(means["mse"], 0.32), atol=0.05)
+    assert ((means["l1"] > 0.65) & (means["l1"] < 0.9)).all()  # near 0.8, far from the mean 0.32
 
 
 # ------------------------------------------------------------------ the whole run and its checkpoint
@@ -370,7 +391,7 @@ def test_time_budget_stops_adding_rounds(tmp_path):
 # ------------------------------------------------------------------ bad input
 @pytest.mark.parametrize("overrides, message", [
     ({"method": "ppo"}, "unknown method 'ppo'; valid choices: bc, dagger"),
-    ({"loss": "l1"}, "valid choices: mse, nll"),
+    ({"loss": "huber"}, "valid choices: mse, l1, nll"),
     ({"split": "unseen"}, "valid choices: seen, seen_half"),
     ({"encoder": "huge"}, "valid choices: small, medium, large"),
     ({"beta": 1.5}, r"beta must be in \[0, 1\], got 1.5"),

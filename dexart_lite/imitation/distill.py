@@ -55,7 +55,7 @@ from dexart_lite.rollout import Policy, per_object_summary, run_episodes
 from dexart_lite.utils import check_choice, write_json
 
 METHODS = ("bc", "dagger")
-LOSSES = ("mse", "nll")
+LOSSES = ("mse", "l1", "nll")
 CHECKPOINT = "checkpoint.pt"
 
 
@@ -96,7 +96,9 @@ class DistillConfig:
                        "that acts and is saved (0: the trained weights themselves)"})
     batch_size: int = 256
     weight_decay: float = field(default=0.0, metadata={"help": "Adam weight decay"})
-    loss: str = field(default="mse", metadata={"help": "mse on the mean action, or nll (Gaussian, trains the log-std)"})
+    loss: str = field(default="mse", metadata={"help": "mse on the mean action; l1 (its median: where the expert's "
+                      "labels for one observation split between two actions, the mean of both may be neither); or "
+                      "nll (Gaussian, trains the log-std)"})
     aux_coef: float = field(default=1.0, metadata={"help": "weight of the auxiliary loss: the trunk's features also "
                             "predict the expert's privileged object state (a linear head, dropped after training; "
                             "0: off)"})
@@ -292,6 +294,8 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
                 target = batch["expert_action"]  # (B, 22)
                 if cfg.loss == "mse":
                     loss = ((out["loc"] - target).pow(2) * weights).mean()
+                elif cfg.loss == "l1":  # the conditional median (ACT, Zhao et al. 2023, chose L1 for precise actions)
+                    loss = ((out["loc"] - target).abs() * weights).mean()
                 else:  # Gaussian NLL per action, with the state-independent scale
                     loss = -torch.distributions.Normal(out["loc"], out["scale"]).log_prob(target).sum(-1).mean()
                 if use_aux:

@@ -13,6 +13,13 @@ hold even on a noisy machine:
 
 ``obs_overhead_ratio`` = full step / physics-only step. Target at the defaults: <= 1.6.
 
+``breakdown``: where one ``env.step`` of the registered env (gymnasium's wrappers included) goes, from
+real steps: every piece the step loop calls is timed in place (exclusive of the pieces it calls
+itself, so nothing is counted twice) and ``wrappers`` is the wrapped step minus the bare one, both
+timed in the same rounds. ``step_glue`` is what the bare step spends outside the timed pieces
+(``DexArtEnv.step``'s own lines). ``breakdown_sum_vs_full`` = the parts' sum over the wrapped step
+measured without timers: the breakdown is complete when it is within 5 % of 1.
+
     python benchmarks/bench_sim.py --task laptop --json benchmarks/results/bench_sim.json
 """
 
@@ -21,6 +28,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +37,102 @@ import dexart_lite
 from dexart_lite import pointcloud as pc
 from dexart_lite.envs import make
 from dexart_lite.utils import command_line, machine_info, write_json
+
+
+class PartTimer:
+    """Exclusive wall time per named piece of code, from wrappers put on bound methods in place."""
+
+    def __init__(self):
+        self.seconds: dict[str, float] = defaultdict(float)
+        self._stack: list[list] = []  # [name, start, time spent in nested timed pieces]
+        self._wrapped: list[tuple] = []  # (owner, attribute, its instance value or None)
+
+    def wrap(self, owner, attribute: str, name: str) -> None:
+        """Replace ``owner.attribute`` (a callable) by a timed call of it, as an instance attribute."""
+        inner = getattr(owner, attribute)
+        self._wrapped.append((owner, attribute, owner.__dict__.get(attribute)))
+
+        def timed(*args, **kwargs):
+            frame = [name, time.perf_counter(), 0.0]
+            self._stack.append(frame)
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                self._stack.pop()
+                spent = time.perf_counter() - frame[1]
+                self.seconds[name] += spent - frame[2]
+                if self._stack:
+                    self._stack[-1][2] += spent
+
+        setattr(owner, attribute, timed)
+
+    def restore(self) -> None:
+        """Undo every ``wrap``: instance attributes come back, wrapped methods go."""
+        for owner, attribute, value in reversed(self._wrapped):
+            if value is None:
+                del owner.__dict__[attribute]
+            else:
+                owner.__dict__[attribute] = value
+        self._wrapped.clear()
+
+
+# (object path from the bare env, method, part name); IK is the arm's twist -> joint velocity solve.
+TIMED_PIECES = [
+    ("", "_check_action", "check_action"),
+    ("robot", "apply_action", "hand_motors"),
+    ("robot", "twist_to_joint_velocity", "arm_ik"),
+    ("robot", "track_arm", "arm_motors_per_substep"),
+    ("sim", "step", "physics_substeps"),
+    ("", "_read_state", "state_read"),
+    ("sim", "contact_forces", "contacts"),
+    ("", "_evaluate", "reward_and_info"),
+    ("", "_observe", "state_vector"),
+    ("sensor", "observe", "cloud_assembly"),
+    ("sensor.camera", "render_depth", "render"),
+    ("sensor.camera", "back_project", "back_project"),
+    ("sensor", "labels", "labels"),
+    ("sensor", "imagined_points", "imagine"),
+]
+
+
+def instrument(env, timer: PartTimer) -> None:
+    """Put ``timer``'s wrappers on the pieces of ``env``'s step (again after a reset rebuilt the world)."""
+    for path, method, name in TIMED_PIECES:
+        owner = env
+        for attribute in filter(None, path.split(".")):
+            owner = getattr(owner, attribute)
+        timer.wrap(owner, method, name)
+
+
+def step_breakdown(task: str, actions: np.ndarray, rounds: int) -> dict:
+    """Median ms per control step of each piece of ``env.step`` (see the module docstring)."""
+    wrapped = make(task, point_noise=True, camera_noise=True)
+    bare = wrapped.unwrapped
+    per_round: dict[str, list[float]] = defaultdict(list)
+    n = len(actions)
+    for _ in range(rounds):
+        for variant in ("wrapped", "bare", "timed"):
+            wrapped.reset(seed=1)
+            timer = PartTimer()
+            if variant == "timed":
+                instrument(bare, timer)
+            step = wrapped.step if variant == "wrapped" else bare.step
+            start = time.perf_counter()
+            for a in actions:
+                step(a)
+            per_round[variant].append((time.perf_counter() - start) / n * 1e3)
+            if variant == "timed":
+                for name, seconds in timer.seconds.items():
+                    per_round[name].append(seconds / n * 1e3)
+                per_round["step_glue"].append(per_round["timed"][-1] - sum(timer.seconds.values()) / n * 1e3)
+                timer.restore()
+    wrapped.close()
+    ms = {k: statistics.median(v) for k, v in per_round.items()}
+    parts = {name: ms.get(name, 0.0) for _, _, name in TIMED_PIECES}
+    parts["step_glue"] = ms["step_glue"]
+    parts["wrappers"] = ms["wrapped"] - ms["bare"]
+    return {"ms_per_step": parts, "wrapped_step_ms": ms["wrapped"], "bare_step_ms": ms["bare"],
+            "timed_step_ms": ms["timed"], "breakdown_sum_vs_full": sum(parts.values()) / ms["wrapped"]}
 
 
 def main(argv=None) -> dict:
@@ -100,11 +204,13 @@ def main(argv=None) -> dict:
             times[name].append((time.perf_counter() - start) / args.steps * 1e3)
     env.close()
     ms = {k: statistics.median(v) for k, v in times.items()}
+    breakdown = step_breakdown(args.task, actions, args.rounds)
     result = {
         "task": args.task,
         "ms_per_step": ms,
         "obs_overhead_ratio": ms["full"] / ms["physics"],
         "steps_per_s_full": 1e3 / ms["full"],
+        "breakdown": breakdown,
         "settings": {"camera": "64x64 TinyRenderer", "points": "512 + 96", "dt": env.sim.dt, "frame_skip": env.frame_skip},
         "command": command_line("benchmarks/bench_sim.py", argv),
         "machine": machine_info(),
@@ -114,6 +220,10 @@ def main(argv=None) -> dict:
         print(f"| {k} | {v:.3f} |")
     print(f"\nobs_overhead_ratio (full / physics) = {result['obs_overhead_ratio']:.2f}; "
           f"{result['steps_per_s_full']:.0f} env steps/s on one core")
+    print(f"\n| piece of env.step ({args.task}, wrapped) | ms per control step |\n|---|---|")
+    for k, v in sorted(breakdown["ms_per_step"].items(), key=lambda kv: -kv[1]):
+        print(f"| {k} | {v:.3f} |")
+    print(f"| sum / wrapped step ({breakdown['wrapped_step_ms']:.3f} ms) | {breakdown['breakdown_sum_vs_full']:.3f} |")
     if args.json:
         write_json(args.json, result)
     return result

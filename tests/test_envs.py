@@ -281,3 +281,28 @@ def test_the_reset_benchmark_times_this_checkout_and_writes_its_report(load_benc
     row = report["tasks"]["laptop"]
     assert set(row) == {"this_ms_per_reset"} and row["this_ms_per_reset"] > 0
     assert json.loads((tmp_path / "r.json").read_text())["resets"] == 3
+
+
+def test_the_step_breakdown_times_every_piece_the_step_calls_and_changes_nothing(load_benchmark):
+    """bench_sim's breakdown wraps the step's pieces in place: each one must really be called by
+    env.step (a renamed or bypassed piece would read 0 ms), the timed step must give the same
+    observation as an untimed one, and the wrappers must come off again."""
+    bench = load_benchmark("bench_sim")
+    action = np.r_[[0.2] * 6, [0.5] * 16]
+    plain = make("laptop", point_noise=True, camera_noise=True).unwrapped
+    plain.reset(seed=1)
+    expected = plain.step(action)[0]
+    plain.close()
+    env = make("laptop", point_noise=True, camera_noise=True).unwrapped
+    env.reset(seed=1)
+    timer = bench.PartTimer()
+    bench.instrument(env, timer)
+    obs = env.step(action)[0]
+    assert all(np.array_equal(obs[k], expected[k]) for k in expected)
+    assert {name for _, _, name in bench.TIMED_PIECES} == {k for k, v in timer.seconds.items() if v > 0}
+    timer.restore()
+    assert "step" not in env.sim.__dict__ and "observe" not in env.sensor.__dict__
+    assert callable(env.sensor.labels) and not hasattr(env.sensor.labels, "__wrapped__")
+    assert type(env.sensor.labels).__name__ == "LabelTable"
+    breakdown = bench.step_breakdown("laptop", np.tile(action, (2, 1)), rounds=1)
+    assert set(breakdown["ms_per_step"]) == {name for _, _, name in bench.TIMED_PIECES} | {"step_glue", "wrappers"}

@@ -10,12 +10,18 @@ For each task, side by side in one run:
 ``reset_rss_growth_mb``: resident memory after ``--resets`` resets cycling through every laptop
 (seen and unseen objects in one env), minus the memory after a warm-up of one cycle.
 
+With ``--ref COMMIT``, each task's 1-process rate is also measured for this checkout and for a ``git
+worktree`` of that commit, alternately in fresh subprocesses of the same run (``vs_ref``: this / ref);
+speed-ups are claimed from this ratio, never from figures taken on different days or machines.
+
     python benchmarks/bench_envs.py --json benchmarks/results/bench_envs.json
+    python benchmarks/bench_envs.py --ref 2f696c9 --resets 0 --json benchmarks/results/bench_envs_vs_2f696c9.json
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import multiprocessing as mp
 import statistics
 import time
@@ -26,7 +32,26 @@ import psutil
 
 import dexart_lite
 from dexart_lite.envs import make
-from dexart_lite.utils import command_line, machine_info, write_json
+from dexart_lite.utils import command_line, git_worktree, machine_info, run_in_checkout, write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+# The 1-process loop of ``step_rate`` as a script, with only the API every commit has (``make``, step).
+MEASURE = """
+import json, sys, time
+import numpy as np
+from dexart_lite.envs import make
+task, steps = sys.argv[1], int(sys.argv[2])
+rng = np.random.default_rng(0)
+actions = rng.uniform(-1, 1, size=(steps, 22)) * np.r_[[0.3] * 6, [1.0] * 16]
+env = make(task)
+env.reset(seed=0)
+start = time.perf_counter()
+for a in actions:
+    _, _, terminated, truncated, _ = env.step(a)
+    if terminated or truncated:
+        env.reset()
+print(json.dumps({"steps_per_s": steps / (time.perf_counter() - start)}))
+"""
 
 
 def random_actions(n: int, seed: int = 0) -> np.ndarray:
@@ -114,7 +139,10 @@ def main(argv=None) -> dict:
     parser.add_argument("--tasks", nargs="+", default=list(dexart_lite.TASKS), choices=dexart_lite.TASKS)
     parser.add_argument("--steps", type=int, default=400, help="steps per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="repeats of the 1-process measurements (median)")
-    parser.add_argument("--resets", type=int, default=2000)
+    parser.add_argument("--resets", type=int, default=2000, help="resets of the memory check (0: skip it)")
+    parser.add_argument("--two-process", action=argparse.BooleanOptionalAction, default=True,
+                        help="also measure two worker processes stepping at once")
+    parser.add_argument("--ref", help="an earlier commit whose 1-process rate is measured side by side")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
 
@@ -125,16 +153,31 @@ def main(argv=None) -> dict:
             full.append(step_rate(task, args.steps))
             physics.append(physics_rate(task, args.steps))
         full_rate, physics_rate_ = statistics.median(full), statistics.median(physics)
-        tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two_process_rate(task, args.steps),
+        tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two_process_rate(task, args.steps) if args.two_process else None,
                        "vs_physics_only": physics_rate_ / full_rate}
-    result = {"tasks": tasks, "reset_rss_growth_mb": reset_rss_growth_mb(args.resets), "resets": args.resets,
-              "steps": args.steps, "command": command_line("benchmarks/bench_envs.py", argv),
-              "machine": machine_info()}
+    if args.ref:
+        with git_worktree(ROOT, args.ref) as ref_root:
+            for task in args.tasks:
+                rates = {"this": [], "ref": []}
+                for _ in range(args.rounds):
+                    for key, root in (("this", ROOT), ("ref", ref_root)):
+                        rates[key].append(run_in_checkout(root, MEASURE, task, str(args.steps))["steps_per_s"])
+                this, ref = statistics.median(rates["this"]), statistics.median(rates["ref"])
+                tasks[task].update({"steps_per_s_subprocess": this, "ref_steps_per_s": ref, "vs_ref": this / ref})
+    result = {"tasks": tasks, "reset_rss_growth_mb": reset_rss_growth_mb(args.resets) if args.resets else None,
+              "resets": args.resets, "steps": args.steps, "ref": args.ref,
+              "command": command_line("benchmarks/bench_envs.py", argv), "machine": machine_info()}
     print("| task | env steps/s (1 process) | env steps/s (2 processes, total) | full step / physics-only step |")
     print("|---|---|---|---|")
     for task, r in tasks.items():
-        print(f"| {task} | {r['steps_per_s']:.0f} | {r['steps_per_s_2proc']:.0f} | {r['vs_physics_only']:.2f} |")
-    print(f"\nmemory growth over {args.resets} resets through all laptops: {result['reset_rss_growth_mb']:.1f} MB")
+        two = f"{r['steps_per_s_2proc']:.0f}" if r["steps_per_s_2proc"] else "-"
+        print(f"| {task} | {r['steps_per_s']:.0f} | {two} | {r['vs_physics_only']:.2f} |")
+    if args.ref:
+        print(f"\n| task | this checkout (subprocess) | {args.ref} | this / ref |\n|---|---|---|---|")
+        for task, r in tasks.items():
+            print(f"| {task} | {r['steps_per_s_subprocess']:.0f} | {r['ref_steps_per_s']:.0f} | {r['vs_ref']:.2f} |")
+    if args.resets:
+        print(f"\nmemory growth over {args.resets} resets through all laptops: {result['reset_rss_growth_mb']:.1f} MB")
     if args.json:
         write_json(args.json, result)
     return result

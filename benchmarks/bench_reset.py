@@ -12,14 +12,16 @@ two measured alternately in subprocesses of one run so that the ratio is fair on
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from dexart_lite.utils import git_worktree, run_in_checkout
 
 ROOT = Path(__file__).resolve().parents[1]
 TASKS = ("faucet", "bucket", "laptop", "toilet")
@@ -40,10 +42,7 @@ print(json.dumps({"ms_per_reset": (time.perf_counter() - start) / resets * 1e3})
 
 def measure(package_root: Path, task: str, resets: int) -> float:
     """ms per reset of ``task`` with the ``dexart_lite`` found under ``package_root``."""
-    env = dict(os.environ, PYTHONPATH=str(package_root), OMP_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, "-c", MEASURE, task, str(resets)], env=env, cwd=package_root,
-                         capture_output=True, text=True, check=True).stdout
-    return json.loads(out.strip().splitlines()[-1])["ms_per_reset"]
+    return run_in_checkout(package_root, MEASURE, task, str(resets))["ms_per_reset"]
 
 
 def main(argv=None) -> dict:
@@ -55,15 +54,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     roots = {"this": ROOT}
-    tmp = None
-    if args.ref:
-        tmp = tempfile.mkdtemp(prefix="bench_reset_")
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", tmp, args.ref], check=True,
-                       capture_output=True)
-        roots["ref"] = Path(tmp)
     start = time.time()
     results = {}
-    try:
+    with git_worktree(ROOT, args.ref) if args.ref else contextlib.nullcontext() as ref_root:
+        if ref_root is not None:
+            roots["ref"] = ref_root
         for task in args.tasks:
             samples = {k: [] for k in roots}
             for _ in range(args.rounds):
@@ -74,9 +69,6 @@ def main(argv=None) -> dict:
                 row["ratio_this_over_ref"] = row["this_ms_per_reset"] / row["ref_ms_per_reset"]
             results[task] = row
             print(task, {k: round(v, 2) for k, v in row.items()}, flush=True)
-    finally:
-        if tmp:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", tmp], capture_output=True)
     report = {"tasks": results, "resets": args.resets, "rounds": args.rounds, "ref": args.ref,
               "this_commit": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                                             capture_output=True, text=True).stdout.strip(),

@@ -38,6 +38,44 @@ def command_line(script: str, argv: list[str] | None = None) -> str:
     return " ".join(["python", script, *(sys.argv[1:] if argv is None else argv)])
 
 
+def run_in_checkout(root, code: str, *args: str) -> dict:
+    """Run Python ``code`` with the ``dexart_lite`` found under ``root`` (a checkout), one thread, in a
+    fresh interpreter; return the JSON it prints last. Benchmarks use it to time this checkout and an
+    earlier commit (``git_worktree``) side by side, alternately, in one run."""
+    import json
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(root), OMP_NUM_THREADS="1")
+    out = subprocess.run([sys.executable, "-c", code, *args], env=env, cwd=root, capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+class git_worktree:
+    """``with git_worktree(repo, ref) as root:`` a temporary checkout of commit ``ref``, removed afterwards."""
+
+    def __init__(self, repo, ref: str):
+        self.repo, self.ref, self.root = repo, ref, None
+
+    def __enter__(self):
+        import subprocess
+        import tempfile
+        from pathlib import Path
+
+        self.root = Path(tempfile.mkdtemp(prefix="dexart_lite_ref_"))
+        subprocess.run(["git", "-C", str(self.repo), "worktree", "add", "--detach", str(self.root), self.ref],
+                       check=True, capture_output=True)
+        return self.root
+
+    def __exit__(self, *exc):
+        import subprocess
+
+        subprocess.run(["git", "-C", str(self.repo), "worktree", "remove", "--force", str(self.root)],
+                       capture_output=True)
+        return False
+
+
 def write_json(path, obj) -> None:
     """Write ``obj`` as indented JSON to ``path``, creating its folder."""
     import json

@@ -306,3 +306,16 @@ def test_the_step_breakdown_times_every_piece_the_step_calls_and_changes_nothing
     assert type(env.sensor.labels).__name__ == "LabelTable"
     breakdown = bench.step_breakdown("laptop", np.tile(action, (2, 1)), rounds=1)
     assert set(breakdown["ms_per_step"]) == {name for _, _, name in bench.TIMED_PIECES} | {"step_glue", "wrappers"}
+
+
+def test_the_env_benchmark_compares_with_an_earlier_commit_side_by_side(load_benchmark, tmp_path):
+    """Structure only: a few steps of one task, this checkout against a worktree of HEAD (no second
+    process: its spawned worker cannot be pickled from a module loaded by path; no memory check)."""
+    bench = load_benchmark("bench_envs")
+    report = bench.main(["--tasks", "laptop", "--steps", "5", "--rounds", "1", "--resets", "0", "--no-two-process",
+                         "--ref", "HEAD",
+                         "--json", str(tmp_path / "e.json")])
+    row = report["tasks"]["laptop"]
+    assert row["steps_per_s"] > 0 and row["ref_steps_per_s"] > 0
+    assert row["vs_ref"] == pytest.approx(row["steps_per_s_subprocess"] / row["ref_steps_per_s"])
+    assert report["reset_rss_growth_mb"] is None and json.loads((tmp_path / "e.json").read_text())["ref"] == "HEAD"

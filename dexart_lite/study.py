@@ -81,7 +81,10 @@ STUDIES: dict[str, Study] = {
         "viewpoint-2d", "Does a policy on 2-D depth images keep working when the camera moves?",
         "DexArt (Sec. 5.3, Fig. 9): a policy on images loses its success away from the training view, the "
         "point-cloud policy does not; compare with the `fixed` arm of the viewpoint study",
-        {"depth_cnn": {"encoder": "depth_cnn", "view_range": ""}}, viewpoints=True),
+        # depth_cnn_shift: the same with random shifts of up to 4 px in training (DrQ's augmentation), the
+        # usual cure for an image policy that fits its data and fails on the states it visits itself
+        {"depth_cnn": {"encoder": "depth_cnn", "view_range": ""},
+         "depth_cnn_shift": {"encoder": "depth_cnn", "view_range": "", "image_shift": 4}}, viewpoints=True),
 }
 
 # DexArt's robustness grid (``ROBUSTNESS_INIT_CAMERA_CONFIG``): 7 azimuth x 5 polar offsets (degrees) of

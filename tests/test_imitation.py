@@ -571,3 +571,19 @@ def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out
     (runs[1] / "eval_unseen.json").unlink()
     with pytest.raises(FileNotFoundError, match="no eval_unseen.json"):
         bench.by_template(runs)
+
+
+def test_random_shift_moves_each_image_whole_and_repeats_its_edges():
+    """A 6x6 ramp shifted by up to 2 px: every output is the padded image cropped at one offset (so its
+    rows and columns are runs of the input's), edge values repeat, and a batch gets several offsets."""
+    from dexart_lite.imitation.distill import random_shift
+
+    image = torch.arange(36.0).reshape(6, 6)
+    out = random_shift(image.expand(64, 6, 6), 2, torch.Generator().manual_seed(0))
+    padded = torch.nn.functional.pad(image[None, None], (2, 2, 2, 2), mode="replicate")[0, 0]
+    crops = {(dy, dx): padded[dy:dy + 6, dx:dx + 6] for dy in range(5) for dx in range(5)}
+    offsets = [next(k for k, c in crops.items() if torch.equal(c, o)) for o in out]
+    assert len(set(offsets)) > 10 and out.shape == (64, 6, 6)
+    assert torch.equal(random_shift(image[None], 0, torch.Generator()), image[None])
+    with pytest.raises(ValueError, match="image_shift shifts the depth image"):
+        validate(tiny_distill_config(Path("unused"), image_shift=4))

@@ -190,7 +190,7 @@ def test_depth_image_student_the_2d_baseline(tmp_path):
     assert obs["depth_image"].shape == (64, 64) and env.observation_space.contains(obs)
     assert (obs["depth_image"] > 0).sum() > 200  # the laptop and the robot
     env.close()
-    cfg = tiny_distill_config(tmp_path, encoder="depth_cnn", rounds=1)
+    cfg = tiny_distill_config(tmp_path, encoder="depth_cnn", rounds=1, image_shift=4)  # DrQ shifts in training
     result = distill_lib.distill(cfg)
     assert result["encoder"] is None  # no PointNet to save on its own
     from dexart_lite.imitation.demos import load_demos

@@ -44,7 +44,7 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
-from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, POINTS_KEY, STATE_KEY, encoder_label, encoder_of,
+from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label, encoder_of,
                                              input_key, make_actor_critic, trunk_of)
 from dexart_lite.models.pointnet import load_encoder, save_encoder
 from dexart_lite.registration import TASKS
@@ -122,6 +122,9 @@ class DistillConfig:
     view_range: str = field(default="", metadata={"help": "random camera viewpoints in collection: azimuth,polar "
                             "half-widths in degrees on DexArt's viewpoint sphere, e.g. 60,20 ('': DexArt's fixed "
                             "camera); evaluation always uses the fixed camera"})
+    image_shift: int = field(default=0, metadata={"help": "depth_cnn only: random shifts of the depth image by up "
+                             "to this many pixels in training (edge pixels repeated; DrQ, Kostrikov et al. 2021); "
+                             "0: none"})
     camera_noise: bool = field(default=True, metadata={"help": "DexArt's per-reset camera perturbation (1.5 cm, "
                                "0.05 rad std) in collection and evaluation"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250)"})
@@ -230,6 +233,10 @@ def validate(cfg: DistillConfig) -> None:
     cfg.dropped_state(33)
     if not (math.isfinite(cfg.arm_weight) and cfg.arm_weight > 0):
         raise ValueError(f"arm_weight must be a finite weight > 0, got {cfg.arm_weight}")
+    if not 0 <= cfg.image_shift <= 16:
+        raise ValueError(f"image_shift must be 0 to 16 pixels, got {cfg.image_shift}")
+    if cfg.image_shift and cfg.encoder != "depth_cnn":
+        raise ValueError("image_shift shifts the depth image of the depth_cnn student; this student reads the point cloud")
     if cfg.pretrained and cfg.encoder == "depth_cnn":
         raise ValueError("--pretrained holds a PointNet; the depth_cnn student has no PointNet to load it into")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
@@ -258,6 +265,17 @@ def build_student(cfg: DistillConfig, dims: dict, demos: TensorDictBase
     # the auxiliary head (trunk features -> privileged object state) lives only during distillation
     aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
     return actor_critic, ema, aux_head
+
+
+def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator) -> torch.Tensor:
+    """Each (H, W) image of ``images`` (B, H, W) moved by its own random offset of -pad..pad pixels in
+    each direction, the edge pixels repeated into the gap (DrQ's augmentation for image policies)."""
+    b, h, w = images.shape
+    padded = torch.nn.functional.pad(images[:, None], (pad, pad, pad, pad), mode="replicate")[:, 0]
+    dy, dx = (torch.randint(0, 2 * pad + 1, (b,), generator=generator) for _ in range(2))
+    rows = (dy[:, None] + torch.arange(h))[:, :, None]  # (B, H, 1)
+    cols = (dx[:, None] + torch.arange(w))[:, None, :]  # (B, 1, W)
+    return padded[torch.arange(b)[:, None, None], rows, cols]
 
 
 def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig,
@@ -289,7 +307,10 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
         for _ in range(epochs):
             total = 0.0
             for idx in torch.randperm(n, generator=generator).split(cfg.batch_size):
-                batch = data[idx]
+                batch = data[idx].select(input_key(cfg.encoder), STATE_KEY, "expert_action",
+                                         *(["privileged"] if use_aux else []))
+                if cfg.image_shift:
+                    batch[IMAGE_KEY] = random_shift(batch[IMAGE_KEY], cfg.image_shift, generator)
                 out = policy(batch.select(input_key(cfg.encoder), STATE_KEY))
                 target = batch["expert_action"]  # (B, 22)
                 if cfg.loss == "mse":

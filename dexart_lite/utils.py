@@ -46,9 +46,15 @@ def run_in_checkout(root, code: str, *args: str) -> dict:
     import subprocess
     import sys
 
+    from pathlib import Path
+
+    root = Path(root).resolve()
+    # An editable install could shadow the checkout's package: check which one the interpreter imports.
+    check = (f"import dexart_lite, pathlib\nassert pathlib.Path(dexart_lite.__file__).resolve().is_relative_to("
+             f"{str(root)!r}), 'dexart_lite imported from ' + dexart_lite.__file__\n")
     env = dict(os.environ, PYTHONPATH=str(root), OMP_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, "-c", code, *args], env=env, cwd=root, capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run([sys.executable, "-c", check + code, *args], env=env, cwd=root, capture_output=True,
+                         text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 

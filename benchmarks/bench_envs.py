@@ -21,7 +21,6 @@ speed-ups are claimed from this ratio, never from figures taken on different day
 from __future__ import annotations
 
 import argparse
-import contextlib
 import multiprocessing as mp
 import statistics
 import time
@@ -153,8 +152,8 @@ def main(argv=None) -> dict:
             full.append(step_rate(task, args.steps))
             physics.append(physics_rate(task, args.steps))
         full_rate, physics_rate_ = statistics.median(full), statistics.median(physics)
-        tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two_process_rate(task, args.steps) if args.two_process else None,
-                       "vs_physics_only": physics_rate_ / full_rate}
+        two = two_process_rate(task, args.steps) if args.two_process else None
+        tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two, "vs_physics_only": physics_rate_ / full_rate}
     if args.ref:
         with git_worktree(ROOT, args.ref) as ref_root:
             for task in args.tasks:

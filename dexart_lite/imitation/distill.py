@@ -44,8 +44,8 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
-from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label, encoder_of,
-                                             input_key, make_actor_critic, trunk_of)
+from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label,
+                                             encoder_of, input_key, make_actor_critic, trunk_of)
 from dexart_lite.models.pointnet import load_encoder, save_encoder
 from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
@@ -236,7 +236,8 @@ def validate(cfg: DistillConfig) -> None:
     if not 0 <= cfg.image_shift <= 16:
         raise ValueError(f"image_shift must be 0 to 16 pixels, got {cfg.image_shift}")
     if cfg.image_shift and cfg.encoder != "depth_cnn":
-        raise ValueError("image_shift shifts the depth image of the depth_cnn student; this student reads the point cloud")
+        raise ValueError("image_shift shifts the depth image of the depth_cnn student; "
+                         "this student reads the point cloud")
     if cfg.pretrained and cfg.encoder == "depth_cnn":
         raise ValueError("--pretrained holds a PointNet; the depth_cnn student has no PointNet to load it into")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():

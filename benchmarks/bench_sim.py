@@ -113,8 +113,8 @@ def step_breakdown(task: str, actions: np.ndarray, rounds: int) -> dict:
     for _ in range(rounds):
         for variant in ("wrapped", "bare", "timed"):
             wrapped.reset(seed=1)
-            timer = PartTimer()
             if variant == "timed":
+                timer = PartTimer()
                 instrument(bare, timer)
             step = wrapped.step if variant == "wrapped" else bare.step
             start = time.perf_counter()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 
@@ -45,7 +46,6 @@ def run_in_checkout(root, code: str, *args: str) -> dict:
     import json
     import subprocess
     import sys
-
     from pathlib import Path
 
     root = Path(root).resolve()
@@ -58,28 +58,20 @@ def run_in_checkout(root, code: str, *args: str) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
-class git_worktree:
+@contextlib.contextmanager
+def git_worktree(repo, ref: str):
     """``with git_worktree(repo, ref) as root:`` a temporary checkout of commit ``ref``, removed afterwards."""
+    import subprocess
+    import tempfile
+    from pathlib import Path
 
-    def __init__(self, repo, ref: str):
-        self.repo, self.ref, self.root = repo, ref, None
-
-    def __enter__(self):
-        import subprocess
-        import tempfile
-        from pathlib import Path
-
-        self.root = Path(tempfile.mkdtemp(prefix="dexart_lite_ref_"))
-        subprocess.run(["git", "-C", str(self.repo), "worktree", "add", "--detach", str(self.root), self.ref],
-                       check=True, capture_output=True)
-        return self.root
-
-    def __exit__(self, *exc):
-        import subprocess
-
-        subprocess.run(["git", "-C", str(self.repo), "worktree", "remove", "--force", str(self.root)],
-                       capture_output=True)
-        return False
+    root = Path(tempfile.mkdtemp(prefix="dexart_lite_ref_"))
+    subprocess.run(["git", "-C", str(repo), "worktree", "add", "--detach", str(root), ref], check=True,
+                   capture_output=True)
+    try:
+        yield root
+    finally:
+        subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(root)], capture_output=True)
 
 
 def write_json(path, obj) -> None:

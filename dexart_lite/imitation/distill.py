@@ -308,8 +308,7 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
         for _ in range(epochs):
             total = 0.0
             for idx in torch.randperm(n, generator=generator).split(cfg.batch_size):
-                batch = data[idx].select(input_key(cfg.encoder), STATE_KEY, "expert_action",
-                                         *(["privileged"] if use_aux else []))
+                batch = data[idx]  # a copy: the shift below leaves the data as they are
                 if cfg.image_shift:
                     batch[IMAGE_KEY] = random_shift(batch[IMAGE_KEY], cfg.image_shift, generator)
                 out = policy(batch.select(input_key(cfg.encoder), STATE_KEY))

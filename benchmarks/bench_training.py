@@ -22,7 +22,12 @@ Measured side by side in one run:
 * a whole training iteration of the ``cpu`` preset (``train``, 2 workers), and the faithful
   preset's iteration computed from the measured parts.
 
+With ``--ref COMMIT``, the whole ``cpu``-preset iteration is also measured for this checkout and for a
+``git worktree`` of that commit, alternately (``--ref-rounds`` times each) in fresh subprocesses of the
+same run (``iteration_vs_ref``: this / ref, medians); speed-ups are claimed from this ratio only.
+
     python benchmarks/bench_training.py --json benchmarks/results/bench_training.json
+    python benchmarks/bench_training.py --ref 2f696c9 --json benchmarks/results/bench_training_vs_2f696c9.json
 
 The machine's 1-minute load average is recorded before and after: on a shared 2-core machine
 other processes slow every number down.
@@ -49,10 +54,26 @@ from dexart_lite.models.actor_critic import encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl import ppo
 from dexart_lite.rl.env import make_env, torch_threads
-from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
+from dexart_lite.utils import command_line, fast_mode, git_worktree, machine_info, run_in_checkout, write_json
 
 MINIBATCH = 500
 POINTS = 512 + 96
+ROOT = Path(__file__).resolve().parents[1]
+# ``training_iteration`` as a script, with only the API every commit since 2f696c9 has (``ppo.preset``,
+# ``ppo.train``, the history's ``collect_s`` / ``update_s``), for ``--ref``: run in each checkout.
+ITERATION = """
+import json, os, sys, tempfile
+import torch
+from dexart_lite.rl import ppo
+task, batches, frames_per_batch, workers = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+torch.set_num_threads(os.cpu_count())  # the learner's threads, as in main()
+with tempfile.TemporaryDirectory() as out:
+    cfg = ppo.preset("cpu", task=task, frames=batches * frames_per_batch, frames_per_batch=frames_per_batch,
+                     workers=workers, out=out, eval_episodes=0, progress=False)
+    history = ppo.train(cfg)["history"][1:]  # the first batch includes the workers' start-up
+n = len(history) * cfg.frames_per_batch
+print(json.dumps({"iteration_fps": n / sum(h["collect_s"] + h["update_s"] for h in history)}))
+"""
 
 
 # ------------------------------------------------------------------ collection
@@ -222,6 +243,24 @@ def training_iteration(task: str, batches: int) -> dict:
             "update_s_per_batch": update / len(history), "collect_s_per_batch": collect / len(history)}
 
 
+def iteration_vs_ref(ref: str, task: str, batches: int, rounds: int,
+                     frames_per_batch: int = ppo.PRESETS["cpu"]["frames_per_batch"], workers: int = 2) -> dict:
+    """The whole cpu-preset iteration (frames/s) of this checkout and of commit ``ref``, measured alternately
+    in fresh subprocesses (``ITERATION``), ``rounds`` times each; medians and their ratio. ``batches``
+    includes the first, untimed one."""
+    fps: dict[str, list[float]] = {"this": [], "ref": []}
+    with git_worktree(ROOT, ref) as ref_root:
+        for _ in range(rounds):
+            for key, root in (("this", ROOT), ("ref", ref_root)):
+                fps[key].append(run_in_checkout(root, ITERATION, task, str(batches), str(frames_per_batch),
+                                               str(workers))[
+                    "iteration_fps"])
+    this, other = statistics.median(fps["this"]), statistics.median(fps["ref"])
+    return {"ref": ref, "ref_rounds": rounds, "ref_frames_per_batch": frames_per_batch,
+            "ref_workers": workers, "iteration_fps_subprocess": this, "ref_iteration_fps": other,
+            "iteration_vs_ref": this / other}
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
@@ -231,10 +270,12 @@ def main(argv=None) -> dict:
     parser.add_argument("--rounds", type=int, default=3, help="rounds of the collection variants (median)")
     parser.add_argument("--reps", type=int, default=5, help="timed minibatches per encoder (median)")
     parser.add_argument("--iteration-batches", type=int, default=3, help="cpu-preset batches (first one not timed)")
+    parser.add_argument("--ref", help="an earlier commit whose whole cpu-preset iteration is measured side by side")
+    parser.add_argument("--ref-rounds", type=int, default=2, help="iterations per checkout with --ref (median)")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     if fast_mode():
-        args.frames, args.rounds, args.reps, args.iteration_batches = 200, 1, 1, 2
+        args.frames, args.rounds, args.reps, args.iteration_batches, args.ref_rounds = 200, 1, 1, 2, 1
     torch.set_num_threads(os.cpu_count())
     load_before = os.getloadavg()[0]
 
@@ -250,6 +291,8 @@ def main(argv=None) -> dict:
         "collect_s": faithful_collect, "update_s": faithful_update,
         "iteration_fps": 20_000 / (faithful_collect + faithful_update),
         "hours_per_1M_frames": 1e6 / (20_000 / (faithful_collect + faithful_update)) / 3600}
+    if args.ref:
+        iteration.update(iteration_vs_ref(args.ref, args.task, args.iteration_batches, args.ref_rounds))
 
     result = {
         "task": args.task,
@@ -281,6 +324,9 @@ def main(argv=None) -> dict:
           f"whole iteration {iteration['iteration_fps']:.0f} frames/s")
     print(f"faithful preset (from the parts): collect {est['collect_s']:.0f} s + update {est['update_s']:.0f} s per "
           f"20k frames = {est['iteration_fps']:.0f} frames/s, {est['hours_per_1M_frames']:.1f} h per 1M frames")
+    if args.ref:
+        print(f"cpu preset iteration side by side: this checkout {iteration['iteration_fps_subprocess']:.0f} "
+              f"frames/s, {args.ref} {iteration['ref_iteration_fps']:.0f} frames/s: x{iteration['iteration_vs_ref']:.2f}")
     print(f"load average (1 min): {load_before:.2f} before, {result['load_average_1min']['after']:.2f} after")
     if args.json:
         write_json(args.json, result)

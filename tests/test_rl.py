@@ -367,3 +367,17 @@ def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkey
     assert summary["departures_from_preset"] == {"obs": "state", "reward": "shaped", "reward_scale": 0.01}
     assert summary["config"]["obs"] == "state" and summary["config"]["reward_scale"] == 0.01
     assert (out / "results" / "learning_laptop_state.json").is_file()  # fast mode never writes the committed results
+
+
+def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark):
+    """Structure only (timings are the benchmark's business): two 500-frame cpu-preset batches collected
+    in-process, this checkout against a worktree of HEAD, each in its own interpreter."""
+    import subprocess
+
+    if subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "HEAD"], capture_output=True).returncode:
+        pytest.skip("not a git checkout: --ref needs git worktree")
+    bench = load_benchmark("bench_training")
+    row = bench.iteration_vs_ref("HEAD", "laptop", batches=2, rounds=1, frames_per_batch=500, workers=0)
+    assert row["iteration_fps_subprocess"] > 0 and row["ref_iteration_fps"] > 0
+    assert row["iteration_vs_ref"] == pytest.approx(row["iteration_fps_subprocess"] / row["ref_iteration_fps"])
+    assert row["ref"] == "HEAD" and row["ref_frames_per_batch"] == 500

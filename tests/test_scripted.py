@@ -164,3 +164,28 @@ def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch, load_benchmark
                                                                ("unseen", 1.0)]
     assert out["splits"] == ["seen", "unseen"] and (tmp_path / "n.png").is_file()
     assert rows[0]["success_rate"] == 1.0
+
+
+# ----------------------------------------------------------------------------- physics settings
+def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting(tmp_path, monkeypatch,
+                                                                                 load_benchmark):
+    """benchmarks/bench_physics.py: a setting ITERATIONSxFRAME_SKIP reaches the env with the control step
+    kept at 40 ms; the report has a speed and a solver row per setting, the baseline's own differences
+    being exactly 1x and 0 (fast mode: 5 steps per episode, a smoke run, not evidence)."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("bench_physics")
+    for bad in ("20", "0x10", "ax10", "20x0", "20x"):
+        with pytest.raises(ValueError, match="ITERATIONSxFRAME_SKIP"):
+            bench.parse_setting(bad)
+    env = make("laptop", num_points=32, **bench.parse_setting("20x5")).unwrapped
+    assert env.frame_skip == 5 and env.sim.dt == pytest.approx(0.008) and env.control_dt == pytest.approx(0.04)
+    env.close()
+    report = bench.main(["--tasks", "laptop", "--settings", "50x10", "20x5", "--json", str(tmp_path / "p.json")])
+    speed = report["speed"]["laptop"]
+    assert set(speed) == {"50x10", "20x5"} and speed["50x10"]["vs_baseline"] == 1.0
+    assert speed["20x5"]["vs_baseline"] == pytest.approx(speed["20x5"]["steps_per_s"] / speed["50x10"]["steps_per_s"])
+    for split in ("seen", "unseen"):
+        row = report["solvers"]["laptop"][split]
+        assert row["50x10"]["minus_baseline"] == 0.0 and row["50x10"]["within_tolerance"]
+        assert row["20x5"]["minus_baseline"] == pytest.approx(row["20x5"]["success_rate"] - row["50x10"]["success_rate"])
+    assert report["solvers_within_tolerance"]["50x10"] and (tmp_path / "p.json").is_file()

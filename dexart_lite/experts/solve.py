@@ -20,19 +20,20 @@ from dexart_lite.utils import check_choice
 
 
 def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: int = 0, object_names=None,
-          progress: bool = True, action_noise: float = 0.0) -> dict:
+          progress: bool = True, action_noise: float = 0.0, env_kwargs: dict | None = None) -> dict:
     """Run the expert over every object of a split; success counts if reached at any step.
 
     Episode ``k`` of object ``i`` is reset with seed ``seed + 1000 k + i``. ``action_noise``: std of
     Gaussian noise added to every action dimension before the env's clip to [-1, 1], as PPO's sampled
     actions (``benchmarks/exploration_noise.py``); drawn from an RNG seeded with ``seed``, separate
-    from the env's.
+    from the env's. ``env_kwargs``: further keywords of the env (e.g. ``solver_iterations``, for
+    ``benchmarks/bench_physics.py``).
     """
     from dexart_lite.envs import make
 
     if not (math.isfinite(action_noise) and action_noise >= 0.0):
         raise ValueError(f"action_noise must be a finite std >= 0, got {action_noise}")
-    env = make(task, split=split, object_names=object_names, num_points=32)
+    env = make(task, split=split, object_names=object_names, **{"num_points": 32, **(env_kwargs or {})})
     names = env.unwrapped.objects.names
     policy = noisy(ScriptedPolicy(env), action_noise, np.random.default_rng(seed))
     episodes = [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]

@@ -188,4 +188,5 @@ def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting
         row = report["solvers"]["laptop"][split]
         assert row["50x10"]["minus_baseline"] == 0.0 and row["50x10"]["within_tolerance"]
         assert row["20x5"]["minus_baseline"] == pytest.approx(row["20x5"]["success_rate"] - row["50x10"]["success_rate"])
-    assert report["solvers_within_tolerance"]["50x10"] and (tmp_path / "p.json").is_file()
+    assert report["solvers_within_tolerance"]["50x10"] and report["solvers_no_lower_per_task"]["50x10"]["laptop"]
+    assert (tmp_path / "p.json").is_file()

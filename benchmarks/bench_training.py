@@ -252,9 +252,8 @@ def iteration_vs_ref(ref: str, task: str, batches: int, rounds: int,
     with git_worktree(ROOT, ref) as ref_root:
         for _ in range(rounds):
             for key, root in (("this", ROOT), ("ref", ref_root)):
-                fps[key].append(run_in_checkout(root, ITERATION, task, str(batches), str(frames_per_batch),
-                                               str(workers))[
-                    "iteration_fps"])
+                args = (task, str(batches), str(frames_per_batch), str(workers))
+                fps[key].append(run_in_checkout(root, ITERATION, *args)["iteration_fps"])
     this, other = statistics.median(fps["this"]), statistics.median(fps["ref"])
     return {"ref": ref, "ref_rounds": rounds, "ref_frames_per_batch": frames_per_batch,
             "ref_workers": workers, "iteration_fps_subprocess": this, "ref_iteration_fps": other,

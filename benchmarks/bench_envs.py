@@ -26,15 +26,15 @@ import statistics
 import time
 from pathlib import Path
 
-import numpy as np
 import psutil
 
 import dexart_lite
 from dexart_lite.envs import make
+from dexart_lite.rollout import random_actions, step_rate
 from dexart_lite.utils import command_line, git_worktree, machine_info, run_in_checkout, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
-# The 1-process loop of ``step_rate`` as a script, with only the API every commit has (``make``, step).
+# The 1-process loop of ``rollout.step_rate`` as a script, with only the API every commit has (``make``, step).
 MEASURE = """
 import json, sys, time
 import numpy as np
@@ -51,27 +51,6 @@ for a in actions:
         env.reset()
 print(json.dumps({"steps_per_s": steps / (time.perf_counter() - start)}))
 """
-
-
-def random_actions(n: int, seed: int = 0) -> np.ndarray:
-    """Random actions (n, 22): gentle arm twists, any hand targets."""
-    rng = np.random.default_rng(seed)
-    return rng.uniform(-1, 1, size=(n, 22)) * np.r_[[0.3] * 6, [1.0] * 16]
-
-
-def step_rate(task: str, steps: int, seed: int = 0) -> float:
-    """env.step calls per second over ``steps`` random steps (episodes restart as they end)."""
-    env = make(task)
-    env.reset(seed=seed)
-    actions = random_actions(steps, seed)
-    start = time.perf_counter()
-    for a in actions:
-        _, _, terminated, truncated, _ = env.step(a)
-        if terminated or truncated:
-            env.reset()
-    rate = steps / (time.perf_counter() - start)
-    env.close()
-    return rate
 
 
 def physics_rate(task: str, steps: int, seed: int = 0) -> float:

@@ -31,11 +31,9 @@ import statistics
 import time
 from pathlib import Path
 
-import numpy as np
-
 import dexart_lite
-from dexart_lite.envs import make
 from dexart_lite.experts.solve import solve
+from dexart_lite.rollout import step_rate
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 CONTROL_DT = 0.04  # s: DexArt's control step (25 Hz), kept in every setting
@@ -54,22 +52,6 @@ def parse_setting(text: str) -> dict:
     return {"solver_iterations": iterations, "frame_skip": skip, "dt": CONTROL_DT / skip}
 
 
-def step_rate(task: str, steps: int, physics: dict, seed: int = 0) -> float:
-    """env.step calls per second over ``steps`` random steps (gentle arm twists, any hand targets)."""
-    env = make(task, **physics)
-    env.reset(seed=seed)
-    rng = np.random.default_rng(seed)
-    actions = rng.uniform(-1, 1, size=(steps, 22)) * np.r_[[0.3] * 6, [1.0] * 16]
-    start = time.perf_counter()
-    for a in actions:
-        _, _, terminated, truncated, _ = env.step(a)
-        if terminated or truncated:
-            env.reset()
-    rate = steps / (time.perf_counter() - start)
-    env.close()
-    return rate
-
-
 def speeds(tasks: list[str], settings: list[str], steps: int, rounds: int) -> dict:
     """Median steps/s per task and setting; the settings take turns in each round."""
     out = {}
@@ -77,7 +59,7 @@ def speeds(tasks: list[str], settings: list[str], steps: int, rounds: int) -> di
         rates: dict[str, list[float]] = {s: [] for s in settings}
         for _ in range(rounds):
             for setting in settings:
-                rates[setting].append(step_rate(task, steps, parse_setting(setting)))
+                rates[setting].append(step_rate(task, steps, **parse_setting(setting)))
         base = statistics.median(rates[settings[0]])
         out[task] = {s: {"steps_per_s": statistics.median(r), "vs_baseline": statistics.median(r) / base}
                      for s, r in rates.items()}

@@ -13,6 +13,7 @@ DexArt's evaluation, an episode is a success if it succeeds at any step.
 
 from __future__ import annotations
 
+import time
 from typing import Callable
 
 import numpy as np
@@ -104,3 +105,27 @@ def per_object_summary(episodes: list[dict]) -> dict:
     names = list(dict.fromkeys(e["object"] for e in episodes))  # first-seen order
     per_object = {name: _summary([e for e in episodes if e["object"] == name]) for name in names}
     return {**_summary(episodes), "objects": per_object}
+
+
+def random_actions(n: int, seed: int = 0) -> np.ndarray:
+    """Random actions (n, 22) for throughput measurements: gentle arm twists, any hand targets."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-1, 1, size=(n, 22)) * np.r_[[0.3] * 6, [1.0] * 16]
+
+
+def step_rate(task: str, steps: int, seed: int = 0, **env_kwargs) -> float:
+    """env.step calls per second over ``steps`` random steps (episodes restart as they end), for the
+    benchmarks; ``env_kwargs`` go to the env (e.g. ``solver_iterations``)."""
+    from dexart_lite.envs import make
+
+    env = make(task, **env_kwargs)
+    env.reset(seed=seed)
+    actions = random_actions(steps, seed)
+    start = time.perf_counter()
+    for a in actions:
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            env.reset()
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate

@@ -2,6 +2,7 @@
 
 import importlib.util
 import os
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -28,3 +29,10 @@ def load_benchmark():
         return module
 
     return load
+
+
+@pytest.fixture
+def git_checkout():
+    """Skips the test where the suite does not run inside a git checkout (``--ref`` needs ``git worktree``)."""
+    if subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "HEAD"], capture_output=True).returncode:
+        pytest.skip("not a git checkout: --ref needs git worktree")

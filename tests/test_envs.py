@@ -1,7 +1,6 @@
 """Contracts every task env must keep: spaces, reward = sum of named terms, seeding, bad input."""
 
 import json
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -309,13 +308,9 @@ def test_the_step_breakdown_times_every_piece_the_step_calls_and_changes_nothing
     assert set(breakdown["ms_per_step"]) == {name for _, _, name in bench.TIMED_PIECES} | {"step_glue", "wrappers"}
 
 
-def test_the_env_benchmark_compares_with_an_earlier_commit_side_by_side(load_benchmark, tmp_path):
+def test_the_env_benchmark_compares_with_an_earlier_commit_side_by_side(load_benchmark, tmp_path, git_checkout):
     """Structure only: a few steps of one task, this checkout against a worktree of HEAD (no second
     process: its spawned worker cannot be pickled from a module loaded by path; no memory check)."""
-    import subprocess
-
-    if subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "HEAD"], capture_output=True).returncode:
-        pytest.skip("not a git checkout: --ref needs git worktree")
     bench = load_benchmark("bench_envs")
     report = bench.main(["--tasks", "laptop", "--steps", "5", "--rounds", "1", "--resets", "0", "--no-two-process",
                          "--ref", "HEAD",

@@ -369,13 +369,9 @@ def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkey
     assert (out / "results" / "learning_laptop_state.json").is_file()  # fast mode never writes the committed results
 
 
-def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark):
+def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark, git_checkout):
     """Structure only (timings are the benchmark's business): two 500-frame cpu-preset batches collected
     in-process, this checkout against a worktree of HEAD, each in its own interpreter."""
-    import subprocess
-
-    if subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "HEAD"], capture_output=True).returncode:
-        pytest.skip("not a git checkout: --ref needs git worktree")
     bench = load_benchmark("bench_training")
     row = bench.iteration_vs_ref("HEAD", "laptop", batches=2, rounds=1, frames_per_batch=500, workers=0)
     assert row["iteration_fps_subprocess"] > 0 and row["ref_iteration_fps"] > 0

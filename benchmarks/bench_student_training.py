@@ -17,6 +17,10 @@ ratio to ``fp32`` measured in the same process:
 - ``in_memory``: the samples copied out of the memory map first;
 - ``no_ema``: without the moving average of the weights (what the average costs).
 
+With ``--encoders small medium large`` every variant runs once per PointNet size (labels such as
+``fp32/large``), all ratios to the first label: the training cost of the encoder study's arms measured
+side by side on one machine, where the study's wall times may come from several.
+
 Without ``--demos`` it first collects 2 noisy expert episodes per seen laptop (about 30 s). Timing
 varies between machines and with load: run it alone; the JSON names the machine and the threads.
 """
@@ -33,6 +37,7 @@ import torch
 
 from dexart_lite.imitation.demos import collect_demos, load_demos, read_manifest
 from dexart_lite.imitation.distill import DistillConfig, build_student, train_student
+from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
@@ -40,7 +45,8 @@ VARIANTS = ("fp32", "bf16", "in_memory", "no_ema")
 
 
 def train_once(variant: str, cfg: DistillConfig, dims: dict, demos, data, epochs: int) -> dict:
-    """Build the student from ``cfg.seed`` and train it ``epochs`` passes over ``data`` as ``variant`` says."""
+    """Build the student of ``cfg`` (its seed, its encoder) and train it ``epochs`` passes over ``data`` as
+    ``variant`` says."""
     torch.manual_seed(cfg.seed)
     actor_critic, ema, aux_head = build_student(cfg, dims, demos)
     if variant == "in_memory":
@@ -60,6 +66,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--epochs", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
+    parser.add_argument("--encoders", nargs="+", default=["small"], choices=list(ENCODER_SIZES),
+                        help="PointNet sizes; with more than one, every variant runs once per size")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores, as distill)")
     parser.add_argument("--json", type=Path, help="where to write the results (default: print only)")
     args = parser.parse_args(argv)
@@ -76,32 +84,38 @@ def main(argv=None) -> dict:
         manifest = read_manifest(demo_path)
         demos = load_demos(demo_path)
         data = demos[: min(args.samples, manifest["samples"])]
-        cfg = DistillConfig(task=manifest["task"], progress=False)
+        configs = {encoder: DistillConfig(task=manifest["task"], encoder=encoder, progress=False)
+                   for encoder in args.encoders}
+        cfg = configs[args.encoders[0]]
         dims = {"num_points": manifest["cloud_points"], "state_dim": manifest["state_dim"],
                 "action_dim": data["expert_action"].shape[-1], "head": cfg.head_widths(), "normalize": cfg.normalize}
         threads = args.threads or torch.get_num_threads()
-        runs: dict[str, list[dict]] = {v: [] for v in args.variants}
+        # label -> (variant, encoder): "fp32" with one encoder, "fp32/large" with several
+        labels = {(v if len(args.encoders) == 1 else f"{v}/{e}"): (v, e) for e in args.encoders for v in args.variants}
+        runs: dict[str, list[dict]] = {label: [] for label in labels}
         with torch_threads(threads):
             for repeat in range(args.repeats):
-                for variant in args.variants:
-                    runs[variant].append(train_once(variant, cfg, dims, demos, data, args.epochs))
-                    print(f"repeat {repeat} {variant:10s} {runs[variant][-1]['samples_per_s']:7.0f} samples/s, "
-                          f"last loss {runs[variant][-1]['loss_last_epoch']:.4f}")
+                for label, (variant, encoder) in labels.items():
+                    runs[label].append(train_once(variant, configs[encoder], dims, demos, data, args.epochs))
+                    print(f"repeat {repeat} {label:16s} {runs[label][-1]['samples_per_s']:7.0f} samples/s, "
+                          f"last loss {runs[label][-1]['loss_last_epoch']:.4f}")
 
-    best = {v: max(r["samples_per_s"] for r in rs) for v, rs in runs.items()}
+    best = {label: max(r["samples_per_s"] for r in rs) for label, rs in runs.items()}
+    first = next(iter(best))
     result = {
         "samples": data.batch_size[0], "epochs": args.epochs, "repeats": args.repeats, "threads": threads,
-        "batch_size": cfg.batch_size, "encoder": cfg.encoder, "cloud_points": manifest["cloud_points"],
-        "samples_per_s_best": best,
+        "batch_size": cfg.batch_size, "encoder": cfg.encoder, "encoders": args.encoders,
+        "cloud_points": manifest["cloud_points"], "samples_per_s_best": best,
         "ratio_to_fp32": {v: best[v] / best["fp32"] for v in best} if "fp32" in best else None,
+        "ratio_to_first": {label: best[label] / best[first] for label in best}, "first": first,
         "loss_last_epoch": {v: rs[0]["loss_last_epoch"] for v, rs in runs.items()},
         "runs": runs, "command": command_line("benchmarks/bench_student_training.py", argv),
         "machine": machine_info(), "torch": torch.__version__,
         "cpu_capability": torch.backends.cpu.get_cpu_capability(), "fast_mode": fast_mode(),
     }
-    for v in best:
-        ratio = f", x{result['ratio_to_fp32'][v]:.2f} of fp32" if result["ratio_to_fp32"] else ""
-        print(f"{v:10s} {best[v]:7.0f} samples/s (best of {args.repeats}){ratio}")
+    for label in best:
+        print(f"{label:16s} {best[label]:7.0f} samples/s (best of {args.repeats}), "
+              f"x{result['ratio_to_first'][label]:.2f} of {first}")
     if args.json:
         write_json(args.json, result)
         print(f"wrote {args.json}")

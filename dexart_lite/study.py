@@ -152,6 +152,7 @@ def run_arm(cfg) -> dict:
                           for split, r in result["eval"].items()}
     keep["history"] = result["history"]
     keep["config"] = settings
+    keep["machine"] = machine_info()  # wall times compare only within one machine
     write_json(record, keep)
     return {**keep, "resumed": False}
 
@@ -322,6 +323,7 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
     result = summarise(study, task, seeds, runs, out, overrides, time.perf_counter() - start, argv)
     if pretraining is not None:
         result["pretraining"] = pretraining
+    keep_earlier_arms(result, out / "study.json", study)
     write_json(out / "study.json", result)
     plot_study(result, out / "study.png")
     (out / "study.md").write_text(markdown_table(result))
@@ -346,7 +348,8 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
         entry["frames"] = [r["expert_frames"] + r["student_frames"] for r in per_seed]
         entry["per_seed"] = [{k: r[k] for k in ("seed", "seen_success", "unseen_success", "expert_frames",
                                                 "student_frames", "wall_time_s", "mean_max_stage", "per_object",
-                                                "resumed")} | ({"reused_from": r["reused_from"]} if "reused_from" in r else {})
+                                                "resumed")} |
+                            {k: r[k] for k in ("reused_from", "machine") if k in r}
                             for r in per_seed]
         if study.name == "objects":  # the seen split in two: the seen_half objects and the other six
             half = {info.name for info in objects_lib.list_objects(task, "seen_half")}
@@ -359,6 +362,8 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
                                           for split in per_seed[0]["viewpoints"]["success"]}
             entry["viewpoint_mean"] = {split: float(np.mean(grid)) for split, grid in entry["viewpoint_success"].items()}
             entry["viewpoint_eval_s"] = [r["viewpoints"]["wall_time_s"] for r in per_seed]
+        entry["measured_by"] = {"command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name]),
+                                "machine": machine_info()}
         arms[arm] = entry
     first = next(iter(runs.values()))[0]["config"]
     grid = {"azimuths_deg": list(VIEW_AZIMUTHS), "polars_deg": list(VIEW_POLARS),
@@ -370,6 +375,32 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
             "wall_time_note": "this invocation's time; arms read back from an earlier run add none (see per_seed)",
             "command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name, "--task", task]),
             "machine": machine_info(), "fast_mode": fast_mode(), "out": str(out)}
+
+
+def keep_earlier_arms(result: dict, path: Path, study: Study) -> None:
+    """Keep in ``result`` the arms of an earlier ``study.json`` at ``path`` that this invocation did not run.
+
+    A study can be finished arm by arm (``--arms large`` after ``--arms small,medium``), on another day or
+    machine, even where the earlier run folders are gone (the committed ``study.json`` copied into ``OUT``).
+    Arms are kept only where the two invocations are comparable (same study, task, seeds, evaluation and
+    overrides); each kept arm names the ``command`` and the ``machine`` that measured it, and the arms come
+    in the study's order. Arms of an incomparable earlier file are not kept (the note says so)."""
+    if not path.exists():
+        return
+    earlier = json.loads(path.read_text())
+    same = ("study", "task", "seeds", "eval_episodes_per_object", "eval_seed", "overrides")
+    mismatch = [k for k in same if earlier.get(k) != result[k]]
+    missing = [arm for arm in earlier.get("arms", {}) if arm not in result["arms"]]
+    if not missing:
+        return
+    if mismatch:
+        print(f"note: {path} holds arms {', '.join(missing)} with other {', '.join(mismatch)}; not kept in the new file")
+        return
+    for arm in missing:
+        entry = earlier["arms"][arm]
+        entry.setdefault("measured_by", {"command": earlier["command"], "machine": earlier["machine"]})
+        result["arms"][arm] = entry
+    result["arms"] = {arm: result["arms"][arm] for arm in study.arms if arm in result["arms"]}
 
 
 def _config(settings: dict):
@@ -392,6 +423,10 @@ def markdown_table(result: dict) -> str:
         lines.append(f"| {arm} | {a['objects']} | {a['seen_success']:.2f} ± {a['seen_success_std']:.2f} | "
                      f"{a['unseen_success']:.2f} ± {a['unseen_success_std']:.2f} | {seeds} | {a['parameters']:,} | "
                      f"{wall} min |")
+    machines = {arm: a["measured_by"]["machine"]["cpu"] for arm, a in result["arms"].items() if "measured_by" in a}
+    if len(set(machines.values())) > 1:
+        lines += ["", "Arms measured on different machines (compare wall times only within one): " +
+                  "; ".join(f"{arm}: {cpu}" for arm, cpu in machines.items()) + "."]
     if result.get("pretraining"):
         from dexart_lite.pretrain.train import MAIN_METRIC
 

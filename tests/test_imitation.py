@@ -461,6 +461,19 @@ def test_bench_student_training_smoke_trains_the_same_student_in_every_fp32_vari
     assert abs(loss["bf16"] - loss["fp32"]) < 0.1 * loss["fp32"]
 
 
+def test_bench_student_training_compares_encoder_sizes_side_by_side(tmp_path, monkeypatch, load_benchmark):
+    """With --encoders, every variant runs once per PointNet size (labels variant/size, ratios to the first)
+    and each size really trains its own student (a different network gives a different loss)."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("bench_student_training")
+    result = bench.main(["--threads", "1", "--variants", "fp32", "--encoders", "small", "large"])
+    assert list(result["samples_per_s_best"]) == ["fp32/small", "fp32/large"]
+    assert result["first"] == "fp32/small" and result["ratio_to_first"]["fp32/small"] == 1.0
+    assert result["encoders"] == ["small", "large"]
+    loss = result["loss_last_epoch"]
+    assert loss["fp32/small"] != loss["fp32/large"]
+
+
 def test_perception_probe_smoke(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/perception_probe.py in fast mode: the targets are the expert's privileged state of the
     cloud shown, and every variant reports a finite error per group for both splits."""

@@ -95,6 +95,33 @@ def test_an_arm_identical_to_another_studys_finished_arm_is_reused_not_retrained
     assert (tmp_path / "imagination" / "with" / "seed0" / "checkpoint.pt").exists()
 
 
+def test_a_study_finished_arm_by_arm_keeps_the_earlier_arms(tmp_path, distilled, capsys):
+    overrides = {"objects": OBJECT, "max_episode_steps": 6}
+    out = tmp_path / "encoder"  # nothing beside it to reuse a run from
+    first = study.run_study("encoder", "laptop", [0], out, arms=["small"], overrides=overrides, progress=False)
+    # the earlier file holds a "large" arm measured elsewhere (its run folders are gone, e.g. a committed study.json)
+    large = {**first["arms"]["small"], "seen_success": 0.25, "parameters": 1}
+    large.pop("measured_by")
+    earlier = {**first, "arms": {"large": large}, "command": "dexart-lite study encoder --arms large",
+               "machine": {"cpu": "another CPU"}}
+    assert len(distilled) == 1
+    (out / "study.json").write_text(json.dumps(earlier))
+    result = study.run_study("encoder", "laptop", [0], out, arms=["small"], overrides=overrides, progress=False)
+    assert len(distilled) == 1  # small was read back, large was not trained
+    assert list(result["arms"]) == ["small", "large"]  # the study's order
+    assert result["arms"]["large"]["seen_success"] == 0.25
+    assert result["arms"]["large"]["measured_by"] == {"command": "dexart-lite study encoder --arms large",
+                                                      "machine": {"cpu": "another CPU"}}
+    assert result["arms"]["small"]["measured_by"]["machine"]["cpu"] != "another CPU"
+    assert result["arms"]["small"]["per_seed"][0]["machine"] == result["arms"]["small"]["measured_by"]["machine"]
+    assert "Arms measured on different machines" in (out / "study.md").read_text()
+    # an earlier file with other seeds is not mixed in, and the run says so
+    (out / "study.json").write_text(json.dumps({**earlier, "seeds": [0, 1]}))
+    result = study.run_study("encoder", "laptop", [0], out, arms=["small"], overrides=overrides, progress=False)
+    assert list(result["arms"]) == ["small"]
+    assert "large with other seeds" in capsys.readouterr().out
+
+
 def test_camera_grid_puts_the_camera_where_the_angles_say():
     grid = study.camera_grid("laptop")
     assert len(grid) == 35 and len({(a, p) for a, p, _ in grid}) == 35

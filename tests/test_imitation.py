@@ -420,6 +420,17 @@ def test_a_run_recorded_before_a_field_existed_is_still_the_same_settings():
     assert not same_settings({**recorded, "a_field_we_never_had": 1}, cfg)
 
 
+def test_a_run_folder_spelled_absolute_or_relative_is_the_same_settings(tmp_path, monkeypatch):
+    """A study re-run with --out as an absolute instead of a relative path reads its finished runs back."""
+    monkeypatch.chdir(tmp_path)
+    cfg = DistillConfig(out="runs/s/small/seed0", pretrained="runs/s/pretrained/seg/encoder.pt")
+    recorded = dataclasses.asdict(cfg)
+    absolute = dataclasses.replace(cfg, out=str(tmp_path / "runs/s/small/seed0"),
+                                   pretrained=str(tmp_path / "runs/s/pretrained/seg/encoder.pt"))
+    assert same_settings(recorded, absolute)
+    assert not same_settings(recorded, dataclasses.replace(absolute, out=str(tmp_path / "runs/s/large/seed0")))
+
+
 def test_cli_prints_one_line_errors_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "run"
     for flags, message in ((["--method", "ppo"], "valid choices: bc, dagger"), (["--beta", "2"], "[0, 1]"),

@@ -191,12 +191,20 @@ class DistillConfig:
         return names
 
 
+PATH_FIELDS = ("out", "demos", "pretrained")  # compared as resolved paths: runs/x and /abs/runs/x are one folder
+
+
 def same_settings(recorded: dict, cfg: DistillConfig) -> bool:
     """Whether a finished run's recorded config (``asdict`` of its ``DistillConfig``) is ``cfg``. A field
     added after the run was recorded counts as equal when ``cfg`` leaves it at its default, which is
-    what the run did: finished runs keep being read back when the config gains an option."""
+    what the run did: finished runs keep being read back when the config gains an option. Paths
+    (``PATH_FIELDS``) are compared resolved against the working directory."""
+    def value(key, v):
+        return str(Path(v).resolve()) if key in PATH_FIELDS and isinstance(v, str) else v
+
     settings, defaults = asdict(cfg), asdict(DistillConfig())
-    return set(recorded) <= set(settings) and all(recorded.get(k, defaults[k]) == v for k, v in settings.items())
+    return set(recorded) <= set(settings) and all(value(k, recorded.get(k, defaults[k])) == value(k, v)
+                                                  for k, v in settings.items())
 
 
 def validate(cfg: DistillConfig) -> None:

@@ -334,6 +334,9 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
 
 def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[dict]], out: Path, overrides: dict,
               wall: float, argv) -> dict:
+    # who measured the arms of this invocation (an arm kept from an earlier file keeps its own)
+    measured_by = {"command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name, "--task", task]),
+                   "machine": machine_info()}
     arms = {}
     for arm, per_seed in runs.items():
         cfg = per_seed[0]["config"]
@@ -362,8 +365,7 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
                                           for split in per_seed[0]["viewpoints"]["success"]}
             entry["viewpoint_mean"] = {split: float(np.mean(grid)) for split, grid in entry["viewpoint_success"].items()}
             entry["viewpoint_eval_s"] = [r["viewpoints"]["wall_time_s"] for r in per_seed]
-        entry["measured_by"] = {"command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name]),
-                                "machine": machine_info()}
+        entry["measured_by"] = measured_by
         arms[arm] = entry
     first = next(iter(runs.values()))[0]["config"]
     grid = {"azimuths_deg": list(VIEW_AZIMUTHS), "polars_deg": list(VIEW_POLARS),
@@ -373,8 +375,7 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
             "overrides": overrides, "learner": "DAgger students of the scripted expert (imitation, not PPO)",
             "wall_time_s": round(wall, 1),
             "wall_time_note": "this invocation's time; arms read back from an earlier run add none (see per_seed)",
-            "command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name, "--task", task]),
-            "machine": machine_info(), "fast_mode": fast_mode(), "out": str(out)}
+            **measured_by, "fast_mode": fast_mode(), "out": str(out)}
 
 
 def keep_earlier_arms(result: dict, path: Path, study: Study) -> None:

@@ -364,6 +364,29 @@ def test_ppo_bc_term_decays_and_bad_init_is_rejected(tiny_run, demos_dir, tmp_pa
     assert "checkpoint not found" in err and len(err.splitlines()) == 1
 
 
+def test_ppo_anchor_is_the_kl_to_the_student(tiny_run, demos_dir, tmp_path):
+    """--anchor-coef: the KL to the initial policy is 0 where the policy is the student, matches the
+    Gaussian formula by hand for a shifted mean, is logged after the warm-up only, and needs --init-from."""
+    from types import SimpleNamespace
+
+    from dexart_lite.rl import ppo
+
+    net = actor_critic_from_checkpoint(load_checkpoint(tiny_run[1]["checkpoint"]))
+    samples = load_demos(demos_dir)[:8].clone()
+    with torch.no_grad():
+        out = net.get_policy_operator()(samples.select("point_cloud", "observation").clone())
+        samples["anchor_loc"], samples["anchor_scale"] = out["loc"].clone(), out["scale"].clone()
+        learner = SimpleNamespace(actor_critic=net)
+        assert float(ppo.anchor_kl(learner, samples)) == pytest.approx(0.0, abs=1e-6)
+        samples["anchor_loc"][:, 3] += 0.1  # one action dimension's mean 0.1 away: KL = 0.1^2 / (2 sigma^2)
+        sigma = float(out["scale"][0, 3])
+        assert float(ppo.anchor_kl(learner, samples)) == pytest.approx(0.01 / (2 * sigma ** 2), rel=1e-4)
+    rows = ppo_from_student(tiny_run, tmp_path / "anchor", frames=300, critic_warmup=1, anchor_coef=1.0)["history"]
+    assert rows[0]["kl_init"] == 0.0 and all(r["kl_init"] > 0 for r in rows[1:])
+    with pytest.raises(ValueError, match="anchor_coef > 0 needs --init-from"):
+        ppo_from_student(tiny_run, tmp_path / "x", init_from=None, anchor_coef=1.0)
+
+
 def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, monkeypatch, capsys, load_benchmark):
     """The fine-tuning benchmark in fast mode: frame 0 is the student's own success, then PPO's; a second
     call reads the finished seed back instead of training again."""

@@ -25,6 +25,7 @@ push the weights to the collectors, collect again.
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import importlib.util
 import json
@@ -111,6 +112,11 @@ class PPOConfig:
     bc_decay: float = field(default=0.8, metadata={"help": "the BC weight is multiplied by this after every batch"})
     bc_demos: str | None = field(default=None, metadata={"help": "demonstrations folder (`dexart-lite data demos`, "
                                  "or a distill run's demos/) for the BC term"})
+    anchor_coef: float = field(default=0.0, metadata={"help": "weight of a KL penalty to the --init-from policy "
+                               "on the batch's visited states, KL(pi || pi_init) summed over the action dims (as "
+                               "RLHF's KL to the reference model); it keeps the fine-tuned policy near the student "
+                               "where the noisy policy gradient has no consistent direction. 0: off (DexArt: no "
+                               "initial policy)"})
     freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
     eval_episodes: int = field(default=10, metadata={"help": "evaluation episodes per object at the end (0: none)"})
     eval_seed: int = 100
@@ -198,6 +204,10 @@ def validate(cfg: PPOConfig) -> None:
         value = getattr(cfg, name)
         if value is not None and not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a finite number > 0 (or None), got {value}")
+    if not (math.isfinite(cfg.anchor_coef) and cfg.anchor_coef >= 0):
+        raise ValueError(f"anchor_coef must be a finite number >= 0, got {cfg.anchor_coef}")
+    if cfg.anchor_coef > 0 and not cfg.init_from:
+        raise ValueError("anchor_coef > 0 needs --init-from (the policy to stay near)")
     if cfg.bc_coef > 0 and not cfg.bc_demos:
         raise ValueError("bc_coef > 0 needs --bc-demos (a demonstrations folder)")
     if cfg.backend == "ray" and importlib.util.find_spec("ray") is None:
@@ -267,6 +277,7 @@ class Learner:
     value_operator: torch.nn.Module  # V(s) alone, for the bootstrap values GAE needs
     dims: dict  # num_points, state_dim, action_dim of the env; head and normalize of the network
     bc_data: object = None  # the --bc-demos samples (a memory-mapped TensorDict) or None
+    anchor: torch.nn.Module | None = None  # a frozen copy of the --init-from policy (--anchor-coef) or None
 
 
 def open_run(cfg: PPOConfig) -> Path:
@@ -343,8 +354,11 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     dims = {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim,
             **{k: list(v) if isinstance(v, tuple) else v for k, v in architecture(arch).items()}}
     bc_data = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 else None
+    anchor = None
+    if cfg.anchor_coef > 0:  # the student as loaded, before any update (a resumed run reloads it from --init-from)
+        anchor = copy.deepcopy(actor_critic.get_policy_operator()).requires_grad_(False)
     return Learner(actor_critic, loss_module, optimizer, trainable, gae, actor_critic.get_value_operator(), dims,
-                   bc_data)
+                   bc_data, anchor)
 
 
 def restore(learner: Learner, cfg: PPOConfig, path: Path) -> tuple[int, int, list]:
@@ -391,16 +405,38 @@ def bc_loss(learner: Learner, size: int, generator: torch.Generator) -> torch.Te
     return torch.nn.functional.mse_loss(td["loc"], samples["expert_action"])
 
 
+def add_anchor(flat, learner: Learner, chunk: int = 1000) -> None:
+    """``flat["anchor_loc"]`` and ``flat["anchor_scale"]``, (N, action_dim): the initial policy's action
+    distribution on the batch's states, computed once per batch without gradients."""
+    with torch.no_grad():
+        parts = [learner.anchor(flat[i:i + chunk].select(POINTS_KEY, STATE_KEY).clone()).select("loc", "scale")
+                 for i in range(0, flat.numel(), chunk)]
+    out = torch.cat(parts)
+    flat["anchor_loc"], flat["anchor_scale"] = out["loc"], out["scale"]
+
+
+def anchor_kl(learner: Learner, samples) -> torch.Tensor:
+    """Mean over ``samples`` of KL(pi(.|s) || pi_init(.|s)) for diagonal Gaussians, summed over the action
+    dimensions (nats); the current policy is evaluated again here (its trunk included)."""
+    td = learner.actor_critic.get_policy_operator()(samples.select(POINTS_KEY, STATE_KEY).clone())
+    loc, scale, loc0, scale0 = td["loc"], td["scale"], samples["anchor_loc"], samples["anchor_scale"]
+    kl = torch.log(scale0 / scale) + (scale ** 2 + (loc - loc0) ** 2) / (2 * scale0 ** 2) - 0.5
+    return kl.sum(-1).mean()
+
+
 def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
     """``cfg.epochs`` passes of clipped-PPO minibatch steps over one batch; the mean of each loss term.
 
     ``batch`` (0-based) < ``cfg.critic_warmup``: only the value loss, and only the value head steps (the
     trunk is shared, so the actor stays exactly as it was). With ``bc_coef`` the BC term (``bc_weight``)
-    is added to every minibatch's loss."""
+    is added to every minibatch's loss, and with ``anchor_coef`` the KL to the initial policy (``anchor_kl``)."""
     warmup, bc = batch < cfg.critic_warmup, bc_weight(cfg, batch)
+    anchored = learner.anchor is not None and not warmup
+    if anchored:
+        add_anchor(flat, learner)
     value_head = set(learner.actor_critic.get_value_head().parameters())
     generator = torch.Generator().manual_seed(cfg.seed * 100_003 + batch)
-    sums, steps = dict.fromkeys(LOSS_KEYS + ("loss_bc",), 0.0), 0
+    sums, steps = dict.fromkeys(LOSS_KEYS + ("loss_bc", "kl_init"), 0.0), 0
     planned = cfg.epochs * math.ceil(flat.numel() / cfg.minibatch)
     for _ in range(cfg.epochs):
         for idx in torch.randperm(flat.numel()).split(cfg.minibatch):
@@ -418,6 +454,9 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
                 if bc > 0:
                     loss_td["loss_bc"] = bc_loss(learner, len(idx), generator)
                     loss = loss + bc * loss_td["loss_bc"]
+                if anchored:
+                    loss_td["kl_init"] = anchor_kl(learner, flat[idx])
+                    loss = loss + cfg.anchor_coef * loss_td["kl_init"]
             learner.optimizer.zero_grad()
             loss.backward()
             if warmup:  # Adam skips parameters without a gradient: the actor does not move at all

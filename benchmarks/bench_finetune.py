@@ -64,7 +64,9 @@ def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
     record = out / "bench.json"
     if record.exists():
         done = json.loads(record.read_text())
-        if done["config"] == dataclasses.asdict(cfg):
+        # a field added to PPOConfig after the run was recorded: the run had that field's default behaviour
+        defaults = {f.name: f.default for f in dataclasses.fields(ppo.PPOConfig)}
+        if {**defaults, **done["config"]} == dataclasses.asdict(cfg):
             print(f"{out}: finished before, read back")
             return done
         raise ValueError(f"{out} holds a run with other settings; delete it or choose another --runs folder")

@@ -401,6 +401,12 @@ def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, mon
         assert 0.0 <= result[key] <= 1.0
     assert (tmp_path / "ft.png").stat().st_size > 0
     assert bench.main(argv)["per_seed"][0]["history"] == row["history"]
+    # a seed recorded before a PPOConfig field existed (here anchor_coef) had its default: still read back
+    record = tmp_path / "finetune_laptop_s0" / "bench.json"
+    done = json.loads(record.read_text())
+    del done["config"]["anchor_coef"]
+    record.write_text(json.dumps(done))
+    assert bench.main(argv)["per_seed"][0]["history"] == row["history"]
     assert "finished before, read back" in capsys.readouterr().out
 
 

@@ -377,3 +377,22 @@ def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commi
     assert row["iteration_fps_subprocess"] > 0 and row["ref_iteration_fps"] > 0
     assert row["iteration_vs_ref"] == pytest.approx(row["iteration_fps_subprocess"] / row["ref_iteration_fps"])
     assert row["ref"] == "HEAD" and row["ref_frames_per_batch"] == 500
+
+
+def test_train_help_lists_every_preset_and_option_with_its_faithful_value(capsys):
+    """`dexart-lite train --help`: every preset, and every PPOConfig field as a flag whose help ends with its
+    DexArt (faithful preset) value, e.g. the fine-tuning guards that DexArt does not have."""
+    import argparse
+
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["train", "--help"])
+    assert exit_info.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    assert f"starting point: {', '.join(ppo.PRESETS)}" in text
+    parser = argparse.ArgumentParser()
+    ppo.add_arguments(parser)
+    helps = {a.dest: a.help for a in parser._actions}
+    for f in dataclasses.fields(ppo.PPOConfig):
+        assert "--" + f.name.replace("_", "-") in text, f.name
+        assert helps[f.name].endswith(f"(faithful preset: {f.default})"), f.name
+    assert "KL penalty to the --init-from policy" in helps["anchor_coef"] and ppo.PPOConfig().anchor_coef == 0.0

@@ -399,29 +399,34 @@ def bc_weight(cfg: PPOConfig, batch: int) -> float:
     return cfg.bc_coef * cfg.bc_decay ** (batch - cfg.critic_warmup)
 
 
+def action_distribution(policy, samples) -> tuple[torch.Tensor, torch.Tensor]:
+    """(loc, scale), each (N, action_dim), of the Gaussian that ``policy`` (a policy operator) puts on the
+    point clouds and state vectors of ``samples``."""
+    td = policy(samples.select(POINTS_KEY, STATE_KEY).clone())
+    return td["loc"], td["scale"]
+
+
 def bc_loss(learner: Learner, size: int, generator: torch.Generator) -> torch.Tensor:
     """MSE of the policy's action mean to the expert labels, on ``size`` random demonstration samples."""
     idx = torch.randint(len(learner.bc_data), (size,), generator=generator)
     samples = learner.bc_data[idx]
-    td = learner.actor_critic.get_policy_operator()(samples.select(POINTS_KEY, STATE_KEY).clone())
-    return torch.nn.functional.mse_loss(td["loc"], samples["expert_action"])
+    loc, _ = action_distribution(learner.actor_critic.get_policy_operator(), samples)
+    return torch.nn.functional.mse_loss(loc, samples["expert_action"])
 
 
 def add_anchor(flat, learner: Learner, chunk: int = 1000) -> None:
     """``flat["anchor_loc"]`` and ``flat["anchor_scale"]``, (N, action_dim): the initial policy's action
     distribution on the batch's states, computed once per batch without gradients."""
     with torch.no_grad():
-        parts = [learner.anchor(flat[i:i + chunk].select(POINTS_KEY, STATE_KEY).clone()).select("loc", "scale")
-                 for i in range(0, flat.numel(), chunk)]
-    out = torch.cat(parts)
-    flat["anchor_loc"], flat["anchor_scale"] = out["loc"], out["scale"]
+        parts = [action_distribution(learner.anchor, flat[i:i + chunk]) for i in range(0, flat.numel(), chunk)]
+    flat["anchor_loc"], flat["anchor_scale"] = (torch.cat(part) for part in zip(*parts))
 
 
 def anchor_kl(learner: Learner, samples) -> torch.Tensor:
     """Mean over ``samples`` of KL(pi(.|s) || pi_init(.|s)) for diagonal Gaussians, summed over the action
     dimensions (nats); the current policy is evaluated again here (its trunk included)."""
-    td = learner.actor_critic.get_policy_operator()(samples.select(POINTS_KEY, STATE_KEY).clone())
-    loc, scale, loc0, scale0 = td["loc"], td["scale"], samples["anchor_loc"], samples["anchor_scale"]
+    loc, scale = action_distribution(learner.actor_critic.get_policy_operator(), samples)
+    loc0, scale0 = samples["anchor_loc"], samples["anchor_scale"]
     kl = torch.log(scale0 / scale) + (scale ** 2 + (loc - loc0) ** 2) / (2 * scale0 ** 2) - 0.5
     return kl.sum(-1).mean()
 

@@ -16,6 +16,12 @@ Writes ``student_seen``, ``student_unseen``, ``seen_success``, ``unseen_success`
 ``per_seed`` (with the per-batch log: success and stage fractions of the collected, stochastic
 episodes, the losses, ``critic_warmup``), ``frames``, ``wall_time_s`` (per seed, PPO and its final
 evaluation), ``command``, ``machine``; and a PNG next to the JSON.
+
+``--heldout-episodes N --heldout-seed S`` adds a second, larger evaluation of every seed's student and
+final policy, on an evaluation seed that took no part in choosing settings (the per-run evaluation
+above, 3 episodes per object, cannot separate a 0.1 change on 6 unseen objects). Its results are
+cached next to each checkpoint (``heldout_<split>_e<N>_seed<S>.json``) and run ``--jobs`` at a time
+(success does not depend on timing, so these may run side by side).
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +38,7 @@ import numpy as np
 import dexart_lite
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
-from dexart_lite.rl.evaluate import evaluate
+from dexart_lite.rl.evaluate import evaluate, evaluate_checkpoint
 from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json
 
 RESULTS = Path(__file__).parent / "results"
@@ -83,6 +91,48 @@ def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
     return keep
 
 
+def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
+    """Student and final policy of every seed evaluated with ``episodes`` per object on both splits at
+    env seed ``seed``; each evaluation cached as JSON next to its checkpoint."""
+    todo = {}
+    for r in per_seed:
+        for folder in (Path(r["student"]), Path(r["config"]["out"])):
+            for split in SPLITS:
+                cache = folder / f"heldout_{split}_e{episodes}_seed{seed}.json"
+                if not cache.exists():
+                    todo[cache] = (str(folder / ppo.CHECKPOINT), split, episodes, seed)
+    if todo:
+        print(f"held-out evaluation: {len(todo)} runs of {episodes} episodes per object, {jobs} at a time")
+        if jobs > 1:  # spawned workers: pybullet and torch do not survive a fork of a busy parent
+            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+                results = dict(zip(todo, pool.map(evaluate_checkpoint, *zip(*todo.values()))))
+        else:
+            results = {cache: evaluate_checkpoint(*job) for cache, job in todo.items()}
+        for cache, result in results.items():
+            write_json(cache, result)
+
+    def rates(folder: str) -> dict:
+        out = {}
+        for split in SPLITS:
+            res = json.loads((Path(folder) / f"heldout_{split}_e{episodes}_seed{seed}.json").read_text())
+            out[split] = {"success": res["success_rate"], "episodes": res["episodes"],
+                          "objects": {name: o["success_rate"] for name, o in res["objects"].items()}}
+        return out
+
+    rows = []
+    for r in per_seed:
+        before, after = rates(r["student"]), rates(r["config"]["out"])
+        rows.append({"seed": r["seed"], "student_seen": before["seen"]["success"],
+                     "student_unseen": before["unseen"]["success"], "seen_success": after["seen"]["success"],
+                     "unseen_success": after["unseen"]["success"],
+                     "episodes": {split: after[split]["episodes"] for split in SPLITS},
+                     "objects": {"student": {s: before[s]["objects"] for s in SPLITS},
+                                 "final": {s: after[s]["objects"] for s in SPLITS}}})
+    keys = ("student_seen", "student_unseen", "seen_success", "unseen_success")
+    return {"episodes_per_object": episodes, "seed": seed,
+            **{k: float(np.mean([row[k] for row in rows])) for k in keys}, "per_seed": rows}
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
@@ -94,6 +144,10 @@ def main(argv=None) -> dict:
                         help="PPOConfig fields to change from the finetune preset, e.g. critic_warmup=0")
     parser.add_argument("--variant", default="", help="a name for --set, in the run folders")
     parser.add_argument("--json", type=Path, help="default benchmarks/results/finetune_<task>.json")
+    parser.add_argument("--heldout-episodes", type=int, default=0,
+                        help="also evaluate students and final policies with this many episodes per object")
+    parser.add_argument("--heldout-seed", type=int, default=1000, help="env seed of the held-out evaluation")
+    parser.add_argument("--jobs", type=int, default=1, help="held-out evaluations run side by side")
     args = parser.parse_args(argv)
     requested = parse_overrides(args.overrides, ppo.PPOConfig)
     if requested and not args.variant:
@@ -128,17 +182,24 @@ def main(argv=None) -> dict:
               "command": command_line("benchmarks/bench_finetune.py", argv), "machine": machine_info(),
               "fast_mode": fast_mode(),
               "note": "PPO (reinforcement learning) started from DAgger students; frame 0 is the student"}
+    if args.heldout_episodes:
+        result["heldout"] = heldout(per_seed, args.heldout_episodes, args.heldout_seed, args.jobs)
+        h = result["heldout"]
+        print(f"held-out ({args.heldout_episodes} episodes per object, seed {args.heldout_seed}): students "
+              f"{h['student_seen']:.2f} / {h['student_unseen']:.2f} -> PPO {h['seen_success']:.2f} / "
+              f"{h['unseen_success']:.2f}")
     write_json(path, result)
     plot(per_seed, path.with_suffix(".png"), f"PPO from DAgger students, {args.task}"
-         + (f" ({args.variant})" if args.variant else ""))
+         + (f" ({args.variant})" if args.variant else ""), result.get("heldout"))
     print(f"{args.task}: students {result['student_seen']:.2f} / {result['student_unseen']:.2f} -> PPO "
           f"{result['seen_success']:.2f} / {result['unseen_success']:.2f}; wrote {path}")
     return result
 
 
-def plot(per_seed: list[dict], path: Path, title: str) -> None:
-    """Deterministic success at frame 0 (the student) and at the end (seen: solid, unseen: dashed), and
-    the success of the collected, stochastic episodes of every batch (thin)."""
+def plot(per_seed: list[dict], path: Path, title: str, held: dict | None = None) -> None:
+    """Deterministic success at frame 0 (the student) and at the end (seen: solid, unseen: dashed), the
+    success of the collected, stochastic episodes of every batch (thin) and, if given, the held-out
+    evaluation's means over seeds (black)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -153,6 +214,11 @@ def plot(per_seed: list[dict], path: Path, title: str) -> None:
         rows = [h for h in r["history"] if h.get("success_rate") == h.get("success_rate")]  # skip NaN
         ax.plot([h["frames"] for h in rows], [h["success_rate"] for h in rows], lw=0.8, alpha=0.5,
                 color=line.get_color(), label=f"seed {r['seed']}: collected episodes (std {np.exp(r['history'][0]['log_std']):.2f})")
+    if held:
+        end = per_seed[0]["frames"]
+        for split, ls, marker in (("seen", "-", "o"), ("unseen", "--", "s")):
+            ax.plot([0, end], [held[f"student_{split}"], held[f"{split}_success"]], color="black", lw=2, ls=ls,
+                    marker=marker, label=f"held-out, mean of seeds ({held['episodes_per_object']} per object): {split}")
     ax.set(xlabel="PPO frames", ylabel="success rate", ylim=(-0.05, 1.05), title=title)
     ax.legend(fontsize=7)
     fig.tight_layout()

@@ -408,6 +408,13 @@ def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, mon
     record.write_text(json.dumps(done))
     assert bench.main(argv)["per_seed"][0]["history"] == row["history"]
     assert "finished before, read back" in capsys.readouterr().out
+    # the held-out evaluation: the student's and the final policy's, cached next to their checkpoints
+    held = bench.main([*argv, "--heldout-episodes", "1", "--heldout-seed", "7"])["heldout"]
+    cache = tmp_path / "finetune_laptop_s0" / "heldout_unseen_e1_seed7.json"
+    assert json.loads(cache.read_text())["success_rate"] == held["per_seed"][0]["unseen_success"]
+    assert held["per_seed"][0]["episodes"] == {"seen": len(objects_lib.list_objects("laptop", "seen")),
+                                               "unseen": len(objects_lib.list_objects("laptop", "unseen"))}
+    assert (Path(row["student"]) / "heldout_seen_e1_seed7.json").exists()
 
 
 def test_time_budget_stops_adding_rounds(tmp_path):

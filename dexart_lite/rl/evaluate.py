@@ -86,18 +86,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gif", type=Path, help="also save one evaluation episode as a GIF")
 
 
-def run(args: argparse.Namespace) -> int:
-    check_choice("split", args.split, SPLITS)
-    payload = load_checkpoint(args.ckpt)
-    actor_critic = actor_critic_from_checkpoint(payload, args.ckpt)
+def load_policy(path: str | Path) -> tuple[ActorValueOperator, dict, dict]:
+    """The policy saved at ``path`` (a PPO or distillation checkpoint, loaded strictly), its run config
+    and the env keywords of the observation it was trained on."""
+    payload = load_checkpoint(path)
     cfg = payload["config"]
     check_choice("task", cfg["task"], TASKS)
     env_kwargs = observation_kwargs(payload)
     if cfg.get("max_episode_steps"):
         env_kwargs["max_episode_steps"] = cfg["max_episode_steps"]
+    return actor_critic_from_checkpoint(payload, path), {**cfg, "frames": payload["frames"]}, env_kwargs
+
+
+def evaluate_checkpoint(path: str | Path, split: str = "seen", episodes_per_object: int = 10,
+                        seed: int = 100) -> dict:
+    """``evaluate`` of the policy saved at ``path``; the result also names the checkpoint and its
+    training frames. A plain function of its arguments, so that a process pool can run several."""
+    check_choice("split", split, SPLITS)
+    actor_critic, cfg, env_kwargs = load_policy(path)
+    result = evaluate(actor_critic, cfg["task"], split, episodes_per_object, seed, env_kwargs)
+    return {**result, "checkpoint": str(path), "frames": cfg["frames"]}
+
+
+def run(args: argparse.Namespace) -> int:
+    check_choice("split", args.split, SPLITS)
+    actor_critic, cfg, env_kwargs = load_policy(args.ckpt)
     result = evaluate(actor_critic, cfg["task"], args.split, args.episodes_per_object, args.seed, env_kwargs)
-    result.update(checkpoint=str(args.ckpt), frames=payload["frames"])
-    print(f"{cfg['task']} {args.split}: {payload['frames']} training frames, {result['episodes']} episodes, "
+    result.update(checkpoint=str(args.ckpt), frames=cfg["frames"])
+    print(f"{cfg['task']} {args.split}: {result['frames']} training frames, {result['episodes']} episodes, "
           f"{result['wall_time_s']} s")
     print(markdown_table([result]))
     if args.json:

@@ -94,11 +94,12 @@ def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
 def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
     """Student and final policy of every seed evaluated with ``episodes`` per object on both splits at
     env seed ``seed``; each evaluation cached as JSON next to its checkpoint."""
+    cached = lambda folder, split: Path(folder) / f"heldout_{split}_e{episodes}_seed{seed}.json"  # noqa: E731
     todo = {}
     for r in per_seed:
         for folder in (Path(r["student"]), Path(r["config"]["out"])):
             for split in SPLITS:
-                cache = folder / f"heldout_{split}_e{episodes}_seed{seed}.json"
+                cache = cached(folder, split)
                 if not cache.exists():
                     todo[cache] = (str(folder / ppo.CHECKPOINT), split, episodes, seed)
     if todo:
@@ -114,7 +115,7 @@ def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
     def rates(folder: str) -> dict:
         out = {}
         for split in SPLITS:
-            res = json.loads((Path(folder) / f"heldout_{split}_e{episodes}_seed{seed}.json").read_text())
+            res = json.loads(cached(folder, split).read_text())
             out[split] = {"success": res["success_rate"], "episodes": res["episodes"],
                           "objects": {name: o["success_rate"] for name, o in res["objects"].items()}}
         return out

@@ -109,11 +109,8 @@ def evaluate_checkpoint(path: str | Path, split: str = "seen", episodes_per_obje
 
 
 def run(args: argparse.Namespace) -> int:
-    check_choice("split", args.split, SPLITS)
-    actor_critic, cfg, env_kwargs = load_policy(args.ckpt)
-    result = evaluate(actor_critic, cfg["task"], args.split, args.episodes_per_object, args.seed, env_kwargs)
-    result.update(checkpoint=str(args.ckpt), frames=cfg["frames"])
-    print(f"{cfg['task']} {args.split}: {result['frames']} training frames, {result['episodes']} episodes, "
+    result = evaluate_checkpoint(args.ckpt, args.split, args.episodes_per_object, args.seed)
+    print(f"{result['task']} {args.split}: {result['frames']} training frames, {result['episodes']} episodes, "
           f"{result['wall_time_s']} s")
     print(markdown_table([result]))
     if args.json:
@@ -121,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
         args.json.write_text(json.dumps(result, indent=2))
         print(f"wrote {args.json}")
     if args.gif:
+        actor_critic, cfg, env_kwargs = load_policy(args.ckpt)
         gif = record_gif(actor_critic, cfg["task"], args.gif, args.split, seed=args.seed, env_kwargs=env_kwargs)
         print(f"wrote {args.gif} ({gif['object_name']}, success {gif['success']})")
     return 0

@@ -369,6 +369,31 @@ def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkey
     assert (out / "results" / "learning_laptop_state.json").is_file()  # fast mode never writes the committed results
 
 
+def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_identical_runs(
+        tmp_path, monkeypatch, load_benchmark):
+    """benchmarks/state_diagnostic.py: one fast run per task and seed through bench_learning; frames to first
+    success is the first batch with a collected success; an earlier JSON is reused only with the same settings."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("state_diagnostic")
+    points = [{"frames": 4000, "success_rate": 0.0, "stage3_frac": 0.0},
+              {"frames": 8000, "success_rate": 0.0, "stage3_frac": 0.01},
+              {"frames": 12000, "success_rate": 0.25, "stage3_frac": 0.2}]
+    assert bench.first_frames(points, "success_rate") == 12000 and bench.first_frames(points, "stage3_frac") == 8000
+    assert bench.first_frames(points[:2], "success_rate") is None
+    result = bench.main(["--tasks", "faucet", "--seeds", "0", "--json", str(tmp_path / "diag.json")])
+    run = result["tasks"]["faucet"]["per_seed"][0]
+    assert run["frames"] == 800 and run["read_back"] is False and result["fast_mode"] is True
+    assert (tmp_path / "diag.png").is_file()
+    written = json.loads((tmp_path / "learning_faucet_state_dexart_s0.json").read_text())
+    assert written["config"]["obs"] == "state" and written["config"]["init_log_std"] == bench.INIT_LOG_STD
+    path = tmp_path / "learning_faucet_state_dexart_s0.json"
+    assert bench.finished(path, frames=800, eval_episodes=1) == written  # identical settings: reused
+    assert bench.finished(path, frames=300_000, eval_episodes=1) is None  # other budget: run again
+    written["departures_from_preset"]["reward"] = "shaped"
+    path.write_text(json.dumps(written))
+    assert bench.finished(path, frames=800, eval_episodes=1) is None
+
+
 def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark, git_checkout):
     """Structure only (timings are the benchmark's business): two 500-frame cpu-preset batches collected
     in-process, this checkout against a worktree of HEAD, each in its own interpreter."""

@@ -30,7 +30,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import dexart_lite  # noqa: E402
-from dexart_lite.utils import command_line, fast_mode, machine_info, write_json  # noqa: E402
+from dexart_lite.rl.ppo import PPOConfig  # noqa: E402
+from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
 # departures from the cpu preset, as the laptop state-only runs of the README (bench_learning --set)
@@ -63,7 +64,7 @@ def finished(path: Path, frames: int, eval_episodes: int) -> dict | None:
     cfg = summary.get("config", {})
     same = (summary.get("frames") == frames and summary.get("preset") == "cpu"
             and summary.get("eval_episodes_per_object") == eval_episodes
-            and summary.get("departures_from_preset") == {"obs": "state", "lr": 3e-4, "reward_scale": 0.01}
+            and summary.get("departures_from_preset") == parse_overrides(SETTINGS, PPOConfig)
             and cfg.get("init_log_std") == INIT_LOG_STD and cfg.get("reward", "dexart") == "dexart")
     return summary if same else None
 
@@ -120,7 +121,8 @@ def main(argv=None) -> dict:
             summary = None if fast_mode() else finished(path, args.frames, args.eval_episodes)
             read_back = summary is not None
             if summary is None:
-                out = Path("runs") / f"learning_{task}_state_dexart_s{seed}" if not fast_mode() else results / "runs" / f"{task}_s{seed}"
+                runs_dir = results / "runs" if fast_mode() else Path("runs")  # a smoke run stays beside its JSON
+                out = runs_dir / f"learning_{task}_state_dexart_s{seed}"
                 summary = bench.main(run_args(task, seed, args.frames, args.eval_episodes, results, out))
             runs.append(summarise_run(summary, seed, read_back))
         firsts = [r["frames_to_first_success"] for r in runs]

@@ -384,9 +384,9 @@ def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_id
     run = result["tasks"]["faucet"]["per_seed"][0]
     assert run["frames"] == 800 and run["read_back"] is False and result["fast_mode"] is True
     assert (tmp_path / "diag.png").is_file()
-    written = json.loads((tmp_path / "learning_faucet_state_dexart_s0.json").read_text())
-    assert written["config"]["obs"] == "state" and written["config"]["init_log_std"] == bench.INIT_LOG_STD
     path = tmp_path / "learning_faucet_state_dexart_s0.json"
+    written = json.loads(path.read_text())
+    assert written["config"]["obs"] == "state" and written["config"]["init_log_std"] == bench.INIT_LOG_STD
     assert bench.finished(path, frames=800, eval_episodes=1) == written  # identical settings: reused
     assert bench.finished(path, frames=300_000, eval_episodes=1) is None  # other budget: run again
     written["departures_from_preset"]["reward"] = "shaped"

@@ -43,7 +43,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--results", type=Path, default=RESULTS, help="where the JSON and PNG go")
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json")
-    parser.add_argument("--init-log-std", type=float, default=0.0, help="initial log std of the actions (DexArt: 0)")
+    parser.add_argument("--init-log-std", type=float, default=None,
+                        help="initial log std of the actions (default: the preset's; DexArt: 0)")
     parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
                         help="other PPOConfig fields, e.g. obs=state reward=shaped lr=3e-4 (needs --tag)")
     args = parser.parse_args(argv)
@@ -59,8 +60,9 @@ def main(argv=None) -> dict:
         if args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
             args.results = out / "results"
     fields = dict(task=args.task, frames=args.frames, encoder=args.encoder, workers=args.workers, seed=args.seed,
-                  eval_episodes=args.eval_episodes, out=str(out), resume=args.resume, init_log_std=args.init_log_std,
-                  progress=not fast_mode())
+                  eval_episodes=args.eval_episodes, out=str(out), resume=args.resume, progress=not fast_mode())
+    if args.init_log_std is not None:
+        fields["init_log_std"] = args.init_log_std
     clash = sorted(set(requested) & set(fields))
     if clash:
         raise ValueError(f"--set {', '.join(clash)}: use the script's own option(s) instead")

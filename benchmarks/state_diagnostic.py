@@ -2,19 +2,23 @@
 
     python benchmarks/state_diagnostic.py --tasks faucet laptop toilet bucket --seeds 0 1 --frames 300000 \
         --json benchmarks/results/state_diagnostic.json
+    python benchmarks/state_diagnostic.py --preset fast --tasks faucet laptop --seeds 0 1 --frames 300000 \
+        --json benchmarks/results/state_diagnostic_fast.json
 
 Every task x seed is one ``benchmarks/bench_learning.py`` run with ``--obs state`` (the state vector plus
 the privileged object state: the part's pose, joint angle, initial angle, target and grasp point; no
-camera, an MLP policy) and the settings below, written as ``learning_<task>_state_dexart_s<seed>.json``
-next to the other learning results. A run whose JSON already holds these settings is read back, not
+camera, an MLP policy) and the settings below, written as ``learning_<task>_state_<tag>_s<seed>.json``
+next to the other learning results (tag ``dexart`` for ``--preset cpu``: DexArt's reward; ``fast``). A run whose JSON already holds these settings is read back, not
 repeated (the two laptop seeds of the README's state-only section are such runs). Runs go one after the
 other, alone.
 
 Reported per task: **frames to first success** (the first PPO batch whose collected, stochastic episodes
 contain a success; None if none did), frames to the first step in stage 3 (the grasp/manipulation
 stage), and the deterministic evaluation's success on the seen and unseen objects at the end. The
-settings are the cpu preset's (4k frames per batch, 5 epochs) with the departures the laptop runs used:
-lr 3e-4 (DexArt 1e-4), rewards x 0.01 (DexArt 1), initial action std 0.3 (log-std -1.2; DexArt 0).
+settings (``--preset cpu``) are the cpu preset's (4k frames per batch, 5 epochs) with the departures the
+laptop runs used: lr 3e-4 (DexArt 1e-4), rewards x 0.01 (DexArt 1), initial action std 0.3 (log-std -1.2;
+DexArt 0). ``--preset fast`` is the PPO preset of that name: the same settings plus a fixed input
+normalisation from 2,000 steps of the initial policy (``obs_norm_steps``), so the two compare that one change.
 """
 
 from __future__ import annotations
@@ -30,13 +34,20 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import dexart_lite  # noqa: E402
-from dexart_lite.rl.ppo import PPOConfig  # noqa: E402
+from dexart_lite.rl.ppo import PRESETS, PPOConfig  # noqa: E402
 from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
-# departures from the cpu preset, as the laptop state-only runs of the README (bench_learning --set)
-SETTINGS = ["obs=state", "lr=3e-4", "reward_scale=0.01"]
+# --preset cpu: departures from the cpu preset, as the laptop state-only runs of the README (bench_learning
+# --set and --init-log-std); --preset fast: the fast preset, which holds them, on the state observation
+SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"]}
 INIT_LOG_STD = -1.2
+TAGS = {"cpu": "dexart", "fast": "fast"}  # learning_<task>_state_<tag>_s<seed>.json
+DEPARTURES = {"cpu": "state-only observation (diagnostic), lr 3e-4 (1e-4), rewards x 0.01 (x 1), initial log-std "
+                     "-1.2 (0), 4k frames per batch (20k), 5 epochs (10)",
+              "fast": "state-only observation (diagnostic), lr 3e-4 (1e-4), rewards x 0.01 (x 1), initial log-std "
+                      "-1.2 (0), 4k frames per batch (20k), 5 epochs (10), inputs normalised with the statistics of "
+                      "2,000 steps of the initial policy (raw inputs)"}
 
 
 def load_benchmark(name: str):
@@ -49,23 +60,31 @@ def load_benchmark(name: str):
     return module
 
 
-def run_args(task: str, seed: int, frames: int, eval_episodes: int, results: Path, out: Path) -> list[str]:
+def run_tag(seed: int, preset: str = "cpu") -> str:
+    """bench_learning's ``--tag``: the run's JSON is ``learning_<task>_<tag>.json``."""
+    return f"state_{TAGS[preset]}_s{seed}"
+
+
+def run_args(task: str, seed: int, frames: int, eval_episodes: int, results: Path, out: Path,
+             preset: str = "cpu") -> list[str]:
     """The ``bench_learning.py`` arguments of one task and seed."""
-    return ["--task", task, "--preset", "cpu", "--seed", str(seed), "--tag", f"state_dexart_s{seed}",
-            "--eval-episodes", str(eval_episodes), "--set", *SETTINGS, "--init-log-std", str(INIT_LOG_STD),
+    log_std = ["--init-log-std", str(INIT_LOG_STD)] if preset == "cpu" else []  # fast: the preset's own
+    return ["--task", task, "--preset", preset, "--seed", str(seed), "--tag", run_tag(seed, preset),
+            "--eval-episodes", str(eval_episodes), "--set", *SETTINGS[preset], *log_std,
             "--frames", str(frames), "--results", str(results), "--out", str(out)]
 
 
-def finished(path: Path, frames: int, eval_episodes: int) -> dict | None:
+def finished(path: Path, frames: int, eval_episodes: int, preset: str = "cpu") -> dict | None:
     """The JSON of an earlier run with exactly these settings, or None."""
     if not path.is_file():
         return None
     summary = json.loads(path.read_text())
     cfg = summary.get("config", {})
-    same = (summary.get("frames") == frames and summary.get("preset") == "cpu"
+    same = (summary.get("frames") == frames and summary.get("preset") == preset
             and summary.get("eval_episodes_per_object") == eval_episodes
-            and summary.get("departures_from_preset") == parse_overrides(SETTINGS, PPOConfig)
-            and cfg.get("init_log_std") == INIT_LOG_STD and cfg.get("reward", "dexart") == "dexart")
+            and summary.get("departures_from_preset") == parse_overrides(SETTINGS[preset], PPOConfig)
+            and cfg.get("init_log_std") == INIT_LOG_STD and cfg.get("reward", "dexart") == "dexart"
+            and cfg.get("obs_norm_steps", 0) == PRESETS[preset].get("obs_norm_steps", 0))
     return summary if same else None
 
 
@@ -95,7 +114,7 @@ def plot(result: dict, path: Path) -> None:
         for run in result["tasks"][task]["per_seed"]:
             frames, success = zip(*([(0, 0.0)] + [tuple(p) for p in run["curve"]]))
             ax.plot(frames, success, label=f"seed {run['seed']}")
-        ax.set(title=f"{task} (state only)", xlabel="frames", ylim=(-0.02, 1.02))
+        ax.set(title=f"{task} (state only, {result['settings']['preset']})", xlabel="frames", ylim=(-0.02, 1.02))
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("success of collected episodes")
     fig.tight_layout()
@@ -109,6 +128,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
     parser.add_argument("--frames", type=int, default=300_000)
     parser.add_argument("--eval-episodes", type=int, default=2, help="per object, seen and unseen")
+    parser.add_argument("--preset", default="cpu", choices=list(SETTINGS),
+                        help="cpu: DexArt's PPO with the departures above; fast: plus the input normalisation")
     parser.add_argument("--json", type=Path, default=RESULTS / "state_diagnostic.json")
     args = parser.parse_args(argv)
     results = args.json.parent
@@ -117,13 +138,14 @@ def main(argv=None) -> dict:
     for task in args.tasks:
         runs = []
         for seed in args.seeds:
-            path = results / f"learning_{task}_state_dexart_s{seed}.json"
-            summary = None if fast_mode() else finished(path, args.frames, args.eval_episodes)
+            name = f"learning_{task}_{run_tag(seed, args.preset)}"
+            path = results / f"{name}.json"
+            summary = None if fast_mode() else finished(path, args.frames, args.eval_episodes, args.preset)
             read_back = summary is not None
             if summary is None:
                 runs_dir = results / "runs" if fast_mode() else Path("runs")  # a smoke run stays beside its JSON
-                out = runs_dir / f"learning_{task}_state_dexart_s{seed}"
-                summary = bench.main(run_args(task, seed, args.frames, args.eval_episodes, results, out))
+                out = runs_dir / name
+                summary = bench.main(run_args(task, seed, args.frames, args.eval_episodes, results, out, args.preset))
             runs.append(summarise_run(summary, seed, read_back))
         firsts = [r["frames_to_first_success"] for r in runs]
         tasks[task] = {"per_seed": runs, "frames_to_first_success": firsts,
@@ -131,9 +153,8 @@ def main(argv=None) -> dict:
                        "seen_success": sum(r["seen_success"] for r in runs) / len(runs),
                        "unseen_success": sum(r["unseen_success"] for r in runs) / len(runs)}
     result = {"frames": args.frames, "seeds": args.seeds, "eval_episodes_per_object": args.eval_episodes,
-              "settings": {"preset": "cpu", "set": SETTINGS, "init_log_std": INIT_LOG_STD,
-                           "departures_from_dexart": "state-only observation (diagnostic), lr 3e-4 (1e-4), rewards "
-                           "x 0.01 (x 1), initial log-std -1.2 (0), 4k frames per batch (20k), 5 epochs (10)"},
+              "settings": {"preset": args.preset, "set": SETTINGS[args.preset], "init_log_std": INIT_LOG_STD,
+                           "departures_from_dexart": DEPARTURES[args.preset]},
               "tasks": tasks, "wall_time_s": time.perf_counter() - start,
               "wall_time_note": "this invocation only; each run's own training time is in per_seed",
               "command": command_line("benchmarks/state_diagnostic.py", argv), "machine": machine_info(),

@@ -6,6 +6,7 @@ import json
 import math
 import shutil
 import socket
+from functools import partial
 from pathlib import Path
 
 import gymnasium as gym
@@ -15,6 +16,7 @@ import torch
 from gymnasium import spaces
 from torchrl.collectors import Collector
 from torchrl.envs import check_env_specs
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives.value import GAE
 
 from dexart_lite import cli
@@ -131,6 +133,7 @@ def test_command_line_options_override_the_preset():
     ({"frames_per_batch": 300, "minibatch": 200}, "must divide frames_per_batch"),
     ({"epochs": 0}, "epochs must be >= 1"),
     ({"init_log_std": float("nan")}, "init_log_std must be a finite number, got nan"),
+    ({"obs_norm_steps": -1}, "obs_norm_steps must be >= 0, got -1"),
 ])
 def test_bad_configs_are_rejected_before_anything_starts(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):
@@ -352,6 +355,33 @@ def test_state_only_diagnostic_never_renders_and_trains_an_mlp(tmp_path, monkeyp
         ppo.validate(tiny_config(tmp_path, obs="image"))
 
 
+def test_observation_normalisation_is_fixed_from_a_rollout_of_the_initial_policy(tmp_path):
+    """--obs-norm-steps N: the trunk's centre and scale are the mean and std of the N states (and points) the
+    initial policy visits in an env seeded with the run's seed; they travel in the checkpoint, and a network
+    from --init-from keeps its own."""
+    cfg = tiny_config(tmp_path, obs_norm_steps=30, seed=3)
+    env_fn = partial(make_env, cfg.task, **cfg.env_kwargs())
+    torch.manual_seed(0)
+    learner = ppo.build_learner(cfg, env_fn)
+    trunk = learner.actor_critic.module[0].module
+    # the same rollout again: same initial weights, same torch RNG stream, same env seed
+    torch.manual_seed(0)
+    fresh = make_actor_critic(*env_dims(env_fn())[1:], "small", cfg.init_log_std, normalize=True)
+    env = env_fn(seed=3)
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        td = env.rollout(30, fresh.get_policy_operator(), break_when_any_done=False)
+    env.close()
+    states, points = td["observation"], td["point_cloud"].reshape(-1, 3)
+    assert states.shape[0] == 30
+    torch.testing.assert_close(trunk.state_loc, states.mean(0))
+    torch.testing.assert_close(trunk.state_scale, states.std(0).clamp_min(1e-2))
+    torch.testing.assert_close(trunk.point_loc, points.mean(0))
+    assert learner.dims["normalize"] is True and not torch.equal(trunk.state_loc, torch.zeros_like(trunk.state_loc))
+    with pytest.raises(ValueError, match="--init-from brings its own input normalisation"):
+        ppo.validate(tiny_config(tmp_path, obs_norm_steps=30, init_from=__file__))
+    assert ppo.PRESETS["fast"]["obs_norm_steps"] > 0 and ppo.PPOConfig().obs_norm_steps == 0  # DexArt: raw inputs
+
+
 def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
     it needs --tag, and fields the script sets itself are refused."""
@@ -392,6 +422,15 @@ def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_id
     written["departures_from_preset"]["reward"] = "shaped"
     path.write_text(json.dumps(written))
     assert bench.finished(path, frames=800, eval_episodes=1) is None
+    # --preset fast: the fast PPO preset (the same departures plus the input normalisation), its own run names
+    bench.main(["--preset", "fast", "--tasks", "faucet", "--seeds", "0", "--json", str(tmp_path / "fast.json")])
+    path = tmp_path / "learning_faucet_state_fast_s0.json"
+    written = json.loads(path.read_text())
+    assert written["preset"] == "fast" and written["departures_from_preset"] == {"obs": "state"}
+    assert written["config"]["obs_norm_steps"] == 2000 and written["config"]["init_log_std"] == bench.INIT_LOG_STD
+    assert written["config"]["lr"] == 3e-4 and written["config"]["reward_scale"] == 0.01
+    assert bench.finished(path, frames=800, eval_episodes=1, preset="fast") == written
+    assert bench.finished(path, frames=800, eval_episodes=1, preset="cpu") is None
 
 
 def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark, git_checkout):

@@ -21,7 +21,7 @@ from torchrl.objectives.value import GAE
 
 from dexart_lite import cli
 from dexart_lite import objects as objects_lib
-from dexart_lite.models.actor_critic import encoder_of, make_actor_critic
+from dexart_lite.models.actor_critic import encoder_of, make_actor_critic, trunk_of
 from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
@@ -363,7 +363,7 @@ def test_observation_normalisation_is_fixed_from_a_rollout_of_the_initial_policy
     env_fn = partial(make_env, cfg.task, **cfg.env_kwargs())
     torch.manual_seed(0)
     learner = ppo.build_learner(cfg, env_fn)
-    trunk = learner.actor_critic.module[0].module
+    trunk = trunk_of(learner.actor_critic)
     # the same rollout again: same initial weights, same torch RNG stream, same env seed
     torch.manual_seed(0)
     fresh = make_actor_critic(*env_dims(env_fn())[1:], "small", cfg.init_log_std, normalize=True)
@@ -377,6 +377,7 @@ def test_observation_normalisation_is_fixed_from_a_rollout_of_the_initial_policy
     torch.testing.assert_close(trunk.state_scale, states.std(0).clamp_min(1e-2))
     torch.testing.assert_close(trunk.point_loc, points.mean(0))
     assert learner.dims["normalize"] is True and not torch.equal(trunk.state_loc, torch.zeros_like(trunk.state_loc))
+    assert any(k.endswith("state_loc") for k in learner.actor_critic.state_dict())  # saved with the weights
     with pytest.raises(ValueError, match="--init-from brings its own input normalisation"):
         ppo.validate(tiny_config(tmp_path, obs_norm_steps=30, init_from=__file__))
     assert ppo.PRESETS["fast"]["obs_norm_steps"] > 0 and ppo.PPOConfig().obs_norm_steps == 0  # DexArt: raw inputs

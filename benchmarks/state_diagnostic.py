@@ -4,6 +4,8 @@
         --json benchmarks/results/state_diagnostic.json
     python benchmarks/state_diagnostic.py --preset fast --tasks faucet laptop --seeds 0 1 --frames 300000 \
         --json benchmarks/results/state_diagnostic_fast.json
+    python benchmarks/state_diagnostic.py --preset fast_sil --tasks faucet laptop --seeds 0 1 --frames 300000 \
+        --json benchmarks/results/state_diagnostic_fast_sil.json
 
 Every task x seed is one ``benchmarks/bench_learning.py`` run with ``--obs state`` (the state vector plus
 the privileged object state: the part's pose, joint angle, initial angle, target and grasp point; no
@@ -19,6 +21,7 @@ settings (``--preset cpu``) are the cpu preset's (4k frames per batch, 5 epochs)
 laptop runs used: lr 3e-4 (DexArt 1e-4), rewards x 0.01 (DexArt 1), initial action std 0.3 (log-std -1.2;
 DexArt 0). ``--preset fast`` is the PPO preset of that name: the same settings plus a fixed input
 normalisation from 2,000 steps of the initial policy (``obs_norm_steps``), so the two compare that one change.
+``--preset fast_sil`` is ``fast`` plus self-imitation learning (``sil_coef=1``, ``rl/sil.py``): one more change.
 """
 
 from __future__ import annotations
@@ -40,13 +43,17 @@ from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overr
 RESULTS = Path(__file__).parent / "results"
 # --preset cpu: departures from the cpu preset, as the laptop state-only runs of the README (bench_learning
 # --set and --init-log-std); --preset fast: the fast preset, which holds them, on the state observation
-SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"]}
+SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"],
+            "fast_sil": ["obs=state", "sil_coef=1.0"]}
+PPO_PRESET = {"cpu": "cpu", "fast": "fast", "fast_sil": "fast"}  # the PPO preset each setting starts from
 INIT_LOG_STD = -1.2
-TAGS = {"cpu": "dexart", "fast": "fast"}  # learning_<task>_state_<tag>_s<seed>.json
+TAGS = {"cpu": "dexart", "fast": "fast", "fast_sil": "fast_sil"}  # learning_<task>_state_<tag>_s<seed>.json
 DEPARTURES = {"cpu": "state-only observation (diagnostic), lr 3e-4 (1e-4), rewards x 0.01 (x 1), initial log-std "
                      "-1.2 (0), 4k frames per batch (20k), 5 epochs (10)"}
 DEPARTURES["fast"] = (DEPARTURES["cpu"] + ", inputs normalised with the statistics of 2,000 steps of the initial "
                       "policy (raw inputs)")
+DEPARTURES["fast_sil"] = (DEPARTURES["fast"] + ", self-imitation of the best 20k collected steps at weight 1 "
+                          "(no replay)")
 
 
 def load_benchmark(name: str):
@@ -68,7 +75,7 @@ def run_args(task: str, seed: int, frames: int, eval_episodes: int, results: Pat
              preset: str = "cpu") -> list[str]:
     """The ``bench_learning.py`` arguments of one task and seed."""
     log_std = ["--init-log-std", str(INIT_LOG_STD)] if preset == "cpu" else []  # fast: the preset's own
-    return ["--task", task, "--preset", preset, "--seed", str(seed), "--tag", run_tag(seed, preset),
+    return ["--task", task, "--preset", PPO_PRESET[preset], "--seed", str(seed), "--tag", run_tag(seed, preset),
             "--eval-episodes", str(eval_episodes), "--set", *SETTINGS[preset], *log_std,
             "--frames", str(frames), "--results", str(results), "--out", str(out)]
 
@@ -79,11 +86,11 @@ def finished(path: Path, frames: int, eval_episodes: int, preset: str = "cpu") -
         return None
     summary = json.loads(path.read_text())
     cfg = summary.get("config", {})
-    same = (summary.get("frames") == frames and summary.get("preset") == preset
+    same = (summary.get("frames") == frames and summary.get("preset") == PPO_PRESET[preset]
             and summary.get("eval_episodes_per_object") == eval_episodes
             and summary.get("departures_from_preset") == parse_overrides(SETTINGS[preset], PPOConfig)
             and cfg.get("init_log_std") == INIT_LOG_STD and cfg.get("reward", "dexart") == "dexart"
-            and cfg.get("obs_norm_steps", 0) == PRESETS[preset].get("obs_norm_steps", 0))
+            and cfg.get("obs_norm_steps", 0) == PRESETS[PPO_PRESET[preset]].get("obs_norm_steps", 0))
     return summary if same else None
 
 
@@ -128,7 +135,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--frames", type=int, default=300_000)
     parser.add_argument("--eval-episodes", type=int, default=2, help="per object, seen and unseen")
     parser.add_argument("--preset", default="cpu", choices=list(SETTINGS),
-                        help="cpu: DexArt's PPO with the departures above; fast: plus the input normalisation")
+                        help="cpu: DexArt's PPO with the departures above; fast: plus the input normalisation; "
+                             "fast_sil: plus self-imitation learning")
     parser.add_argument("--json", type=Path, default=RESULTS / "state_diagnostic.json")
     args = parser.parse_args(argv)
     results = args.json.parent

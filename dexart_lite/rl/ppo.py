@@ -47,6 +47,7 @@ from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import OBSERVATIONS, TASKS
 from dexart_lite.rl.checkpoint import architecture, load_checkpoint, network_encoder, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
+from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
 from dexart_lite.utils import check_choice
 
 BACKENDS = ("process", "distributed", "ray")
@@ -55,6 +56,7 @@ LOSS_KEYS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_app
              "explained_variance")
 # what the loss reads from a batch; the rest (next observations, info) is dropped before the epochs
 BATCH_KEYS = ("point_cloud", "observation", "action", "action_log_prob", "advantage", "value_target")
+SIL_KEYS = ("loss_sil", "loss_sil_value", "sil_positive")  # logged with --sil-coef (rl/sil.py)
 
 
 @dataclass
@@ -121,6 +123,11 @@ class PPOConfig:
                                 "the network's input normalisation before training (torchrl's ObservationNorm."
                                 "init_stats: per entry of the state vector, one centre and scale for the cloud); "
                                 "0: raw inputs (DexArt)"})
+    sil_coef: float = field(default=0.0, metadata={"help": "weight of the self-imitation loss (rl/sil.py; Oh et al. "
+                            "2018): every minibatch step also imitates the actions of the best episodes collected so "
+                            "far where their return beat the critic's estimate. 0: off (DexArt: no replay)"})
+    sil_capacity: int = field(default=20_000, metadata={"help": "steps of the best episodes kept for --sil-coef"})
+    sil_value_coef: float = field(default=0.01, metadata={"help": "weight of the self-imitation value term (SIL's 0.01)"})
     freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
     eval_episodes: int = field(default=10, metadata={"help": "evaluation episodes per object at the end (0: none)"})
     eval_seed: int = 100
@@ -225,6 +232,11 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError(f"anchor_coef must be a finite number >= 0, got {cfg.anchor_coef}")
     if cfg.anchor_coef > 0 and not cfg.init_from:
         raise ValueError("anchor_coef > 0 needs --init-from (the policy to stay near)")
+    for name in ("sil_coef", "sil_value_coef"):
+        if not (math.isfinite(getattr(cfg, name)) and getattr(cfg, name) >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0, got {getattr(cfg, name)}")
+    if cfg.sil_capacity < 1:
+        raise ValueError(f"sil_capacity must be >= 1 step, got {cfg.sil_capacity}")
     if cfg.obs_norm_steps < 0:
         raise ValueError(f"obs_norm_steps must be >= 0, got {cfg.obs_norm_steps}")
     if cfg.obs_norm_steps and cfg.init_from:
@@ -299,6 +311,8 @@ class Learner:
     dims: dict  # num_points, state_dim, action_dim of the env; head and normalize of the network
     bc_data: object = None  # the --bc-demos samples (a memory-mapped TensorDict) or None
     anchor: torch.nn.Module | None = None  # a frozen copy of the --init-from policy (--anchor-coef) or None
+    sil: SelfImitationBuffer | None = None  # the best episodes so far (--sil-coef) or None
+    critic: torch.nn.Module | None = None  # the value head the loss trains (fed detached features with --critic-detach)
 
 
 def open_run(cfg: PPOConfig) -> Path:
@@ -399,8 +413,9 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     anchor = None
     if cfg.anchor_coef > 0:  # the student as loaded, before any update (a resumed run reloads it from --init-from)
         anchor = copy.deepcopy(actor_critic.get_policy_operator()).requires_grad_(False)
+    sil = SelfImitationBuffer(cfg.sil_capacity, cfg.gamma) if cfg.sil_coef > 0 else None
     return Learner(actor_critic, loss_module, optimizer, trainable, gae, actor_critic.get_value_operator(), dims,
-                   bc_data, anchor)
+                   bc_data, anchor, sil, critic)
 
 
 def restore(learner: Learner, cfg: PPOConfig, path: Path) -> tuple[int, int, list]:
@@ -476,14 +491,16 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
 
     ``batch`` (0-based) < ``cfg.critic_warmup``: only the value loss, and only the value head steps (the
     trunk is shared, so the actor stays exactly as it was). With ``bc_coef`` the BC term (``bc_weight``)
-    is added to every minibatch's loss, and with ``anchor_coef`` the KL to the initial policy (``anchor_kl``)."""
+    is added to every minibatch's loss, with ``anchor_coef`` the KL to the initial policy (``anchor_kl``),
+    and with ``sil_coef`` the self-imitation loss on as many steps of the best episodes (``rl/sil.py``)."""
     warmup, bc = batch < cfg.critic_warmup, bc_weight(cfg, batch)
     anchored = learner.anchor is not None and not warmup
     if anchored:
         add_anchor(flat, learner)
     value_head = set(learner.actor_critic.get_value_head().parameters())
     generator = torch.Generator().manual_seed(cfg.seed * 100_003 + batch)
-    sums, steps = dict.fromkeys(LOSS_KEYS + ("loss_bc", "kl_init"), 0.0), 0
+    sil = learner.sil if learner.sil is not None and len(learner.sil) and not warmup else None
+    sums, steps = dict.fromkeys(LOSS_KEYS + ("loss_bc", "kl_init") + SIL_KEYS, 0.0), 0
     planned = cfg.epochs * math.ceil(flat.numel() / cfg.minibatch)
     for _ in range(cfg.epochs):
         for idx in torch.randperm(flat.numel()).split(cfg.minibatch):
@@ -504,6 +521,11 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
                 if anchored:
                     loss_td["kl_init"] = anchor_kl(learner, flat[idx])
                     loss = loss + cfg.anchor_coef * loss_td["kl_init"]
+                if sil is not None:
+                    term, parts = sil_loss(learner.actor_critic.get_policy_operator(), learner.critic,
+                                           sil.sample(len(idx), generator), cfg.sil_value_coef)
+                    loss = loss + cfg.sil_coef * term
+                    loss_td.update({k: torch.tensor(v) for k, v in parts.items()})
             learner.optimizer.zero_grad()
             loss.backward()
             if warmup:  # Adam skips parameters without a gradient: the actor does not move at all
@@ -585,7 +607,10 @@ def train(cfg: PPOConfig) -> dict:
             collected = time.perf_counter()
             torch.set_num_threads(learner_threads)
             data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
-            losses = ppo_update(advantages(data, learner, cfg.reward_scale), learner, cfg, batches)
+            flat = advantages(data, learner, cfg.reward_scale)  # the rewards in data are scaled from here on
+            if learner.sil is not None:  # the batch's finished episodes join the best ones (before the update)
+                learner.sil.add(data)
+            losses = ppo_update(flat, learner, cfg, batches)
             collector.update_policy_weights_()
             updated = time.perf_counter()
 
@@ -594,6 +619,7 @@ def train(cfg: PPOConfig) -> dict:
             frames_done, batches = frames_done + n, batches + 1
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **losses,
                    "log_std": float(action_log_std(learner.actor_critic).mean()),
+                   **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()} if learner.sil else {}),
                    "collect_s": collected - tick, "update_s": updated - collected,
                    "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
                    "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}

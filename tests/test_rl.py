@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import torch
 from gymnasium import spaces
+from tensordict import TensorDict
 from torchrl.collectors import Collector
 from torchrl.envs import check_env_specs
 from torchrl.envs.utils import ExplorationType, set_exploration_type
@@ -134,6 +135,9 @@ def test_command_line_options_override_the_preset():
     ({"epochs": 0}, "epochs must be >= 1"),
     ({"init_log_std": float("nan")}, "init_log_std must be a finite number, got nan"),
     ({"obs_norm_steps": -1}, "obs_norm_steps must be >= 0, got -1"),
+    ({"sil_coef": -1.0}, "sil_coef must be a finite number >= 0, got -1.0"),
+    ({"sil_value_coef": float("inf")}, "sil_value_coef must be a finite number >= 0, got inf"),
+    ({"sil_capacity": 0}, "sil_capacity must be >= 1 step, got 0"),
 ])
 def test_bad_configs_are_rejected_before_anything_starts(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):
@@ -383,6 +387,75 @@ def test_observation_normalisation_is_fixed_from_a_rollout_of_the_initial_policy
     assert ppo.PRESETS["fast"]["obs_norm_steps"] > 0 and ppo.PPOConfig().obs_norm_steps == 0  # DexArt: raw inputs
 
 
+def test_self_imitation_buffer_keeps_the_best_finished_episodes_with_their_discounted_returns():
+    """rl/sil.py: returns to the end of each episode computed by hand; the steps after a worker's last episode
+    end (their episode goes on in the next batch) are never stored; the best episodes fill the capacity."""
+    from dexart_lite.rl.sil import RETURN_KEY, SelfImitationBuffer, episode_returns
+
+    returns = episode_returns(torch.tensor([1.0, 0.0, 2.0, 1.0, 1.0]),
+                              torch.tensor([False, True, False, False, False]), gamma=0.5)
+    torch.testing.assert_close(returns, torch.tensor([1.0 + 0.5 * 0.0, 0.0, 2.0 + 0.5 * 1.5, 1.0 + 0.5, 1.0]))
+
+    # 2 workers x 6 steps; worker 0: episodes [0-2] (return 3) and [3-4] (10), then an unfinished step;
+    # worker 1: episode [0-2] (return 10), then 3 unfinished steps
+    reward = torch.tensor([[1.0, 1, 1, 5, 5, 7], [0, 0, 10, 0, 0, 7]])
+    done = torch.tensor([[0, 0, 1, 0, 1, 0], [0, 0, 1, 0, 0, 0]]).bool()
+    data = TensorDict({"observation": torch.arange(12.0).reshape(2, 6, 1), "action": torch.zeros(2, 6, 22),
+                       "next": {"reward": reward[..., None], "done": done[..., None]}}, [2, 6])
+    buffer = SelfImitationBuffer(capacity=5, gamma=1.0)
+    assert buffer.add(data) == 3
+    assert len(buffer) == 5 and [score for score, _ in buffer.episodes] == [10.0, 10.0]  # the return-3 one is out
+    stored = sorted(buffer.steps["observation"].reshape(-1).tolist())
+    assert stored == [3.0, 4.0, 6.0, 7.0, 8.0]  # never step 5 or 9-11 (unfinished episodes)
+    by_obs = dict(zip(buffer.steps["observation"].reshape(-1).tolist(), buffer.steps[RETURN_KEY].tolist()))
+    assert by_obs == {3.0: 10.0, 4.0: 5.0, 6.0: 10.0, 7.0: 10.0, 8.0: 10.0}
+    sample = buffer.sample(7, torch.Generator().manual_seed(0))
+    assert sample.batch_size == torch.Size([7]) and set(sample["observation"].reshape(-1).tolist()) <= set(stored)
+    with pytest.raises(ValueError, match="capacity must be >= 1 step"):
+        SelfImitationBuffer(capacity=0, gamma=0.99)
+
+
+def test_self_imitation_loss_pulls_only_towards_actions_that_beat_the_critic():
+    """L_sil = -log pi(a|s) (R - V)+ + c 0.5 ((R - V)+)^2: zero (and no gradient) where the critic already
+    expects the stored return; where the return is higher, one gradient step makes the stored action more
+    likely and raises V towards R."""
+    from dexart_lite.rl.sil import RETURN_KEY, sil_loss
+
+    torch.manual_seed(0)
+    net = make_actor_critic(5, 22, "none", init_log_std=-1.0)  # the state MLP trunk
+    policy, critic = net.get_policy_operator(), net.get_value_head()
+    samples = TensorDict({"observation": torch.randn(8, 5), "action": torch.rand(8, 22) * 2 - 1}, [8])
+    with torch.no_grad():
+        td = samples.exclude("action").clone()
+        log_prob_before = policy.get_dist(td).log_prob(samples["action"])
+        value = critic(td)["state_value"].reshape(-1)
+    samples[RETURN_KEY] = value - 1.0  # worse than expected: nothing to imitate
+    loss, parts = sil_loss(policy, critic, samples, value_coef=0.01)
+    loss.backward()
+    assert float(loss.detach()) == 0.0 and parts["sil_positive"] == 0.0
+    assert all(p.grad is None or not p.grad.any() for p in net.parameters())
+    samples[RETURN_KEY] = value + 1.0  # better than expected
+    optimizer = torch.optim.SGD(net.parameters(), lr=1e-3)
+    loss, parts = sil_loss(policy, critic, samples, value_coef=0.01)
+    optimizer.zero_grad()
+    loss.backward()
+    optimizer.step()
+    assert parts["sil_positive"] == 1.0 and parts["loss_sil_value"] == pytest.approx(0.5, rel=1e-4)
+    with torch.no_grad():
+        td = samples.exclude("action", RETURN_KEY).clone()
+        assert policy.get_dist(td).log_prob(samples["action"]).mean() > log_prob_before.mean()
+        assert (critic(td)["state_value"].reshape(-1) > value).float().mean() > 0.5
+
+
+def test_tiny_run_with_self_imitation_logs_its_loss_and_buffer(tmp_path):
+    cfg = tiny_config(tmp_path, obs="state", frames=200, frames_per_batch=100, minibatch=50, workers=0,
+                      eval_episodes=0, sil_coef=1.0, sil_capacity=60)
+    history = ppo.train(cfg)["history"]
+    assert [row["sil_steps"] for row in history] == [60, 60]  # 20-step episodes: 5 per batch, the best 3 kept
+    assert all(math.isfinite(row["loss_sil"]) and 0.0 <= row["sil_positive"] <= 1.0 for row in history)
+    assert ppo.PPOConfig().sil_coef == 0.0  # DexArt: no replay
+
+
 def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
     it needs --tag, and fields the script sets itself are refused."""
@@ -432,6 +505,10 @@ def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_id
     assert written["config"]["lr"] == 3e-4 and written["config"]["reward_scale"] == 0.01
     assert bench.finished(path, frames=800, eval_episodes=1, preset="fast") == written
     assert bench.finished(path, frames=800, eval_episodes=1, preset="cpu") is None
+    # --preset fast_sil: the fast PPO preset plus self-imitation, one more departure
+    assert bench.run_args("faucet", 0, 800, 1, tmp_path, tmp_path, "fast_sil")[:6] == [
+        "--task", "faucet", "--preset", "fast", "--seed", "0"]
+    assert bench.finished(path, frames=800, eval_episodes=1, preset="fast_sil") is None
 
 
 def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark, git_checkout):

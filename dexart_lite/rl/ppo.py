@@ -126,7 +126,8 @@ class PPOConfig:
     sil_coef: float = field(default=0.0, metadata={"help": "weight of the self-imitation loss (rl/sil.py; Oh et al. "
                             "2018): every minibatch step also imitates the actions of the best episodes collected so "
                             "far where their return beat the critic's estimate. 0: off (DexArt: no replay)"})
-    sil_capacity: int = field(default=20_000, metadata={"help": "steps of the best episodes kept for --sil-coef"})
+    sil_capacity: int = field(default=20_000, metadata={"help": "steps of the best episodes kept for --sil-coef (in "
+                              "memory; a resumed run starts with an empty buffer)"})
     sil_value_coef: float = field(default=0.01, metadata={"help": "weight of the self-imitation value term (SIL's 0.01)"})
     freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
     eval_episodes: int = field(default=10, metadata={"help": "evaluation episodes per object at the end (0: none)"})

@@ -30,22 +30,20 @@ from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY
 RETURN_KEY = "sil_return"
 
 
-def episode_returns(reward: torch.Tensor, done: torch.Tensor, gamma: float) -> tuple[torch.Tensor, torch.Tensor]:
+def episode_returns(reward: torch.Tensor, done: torch.Tensor, gamma: float) -> torch.Tensor:
     """Discounted returns to the end of each episode, for one worker's trajectory.
 
     ``reward``, ``done``: (T,) float and bool, ``done[t]``: the episode ended after step t (terminated
-    or truncated). Returns ``(returns, complete)``, both (T,): ``complete[t]`` is False for the steps
-    after the trajectory's last ``done`` (their episode goes on in the next batch: no exact return)."""
+    or truncated). Returns (T,). The steps after the trajectory's last ``done`` get the return of the part
+    collected so far (their episode goes on in the next batch); ``SelfImitationBuffer`` never stores them."""
     returns = torch.zeros_like(reward)
-    complete = torch.zeros_like(done)
-    running, seen_end = 0.0, False
+    running = 0.0
     for t in range(reward.shape[0] - 1, -1, -1):
         if done[t]:
-            running, seen_end = 0.0, True
+            running = 0.0
         running = float(reward[t]) + gamma * running
         returns[t] = running
-        complete[t] = seen_end
-    return returns, complete
+    return returns
 
 
 class SelfImitationBuffer:
@@ -73,7 +71,7 @@ class SelfImitationBuffer:
         for w in range(batch.shape[0]):
             traj = batch[w]
             done = traj["next", "done"].reshape(-1)
-            returns, complete = episode_returns(traj["next", "reward"].reshape(-1).float(), done, self.gamma)
+            returns = episode_returns(traj["next", "reward"].reshape(-1).float(), done, self.gamma)
             ends = torch.nonzero(done).reshape(-1).tolist()
             start = 0
             for end in ends:  # steps start..end are one episode (or its tail, if it began in the last batch)
@@ -82,8 +80,7 @@ class SelfImitationBuffer:
                 score = float(traj["next", "reward"][start:end + 1].sum())  # undiscounted, the episode's tail
                 self.episodes.append((score, steps))
                 added += 1
-                start = end + 1
-            assert not complete[start:].any()
+                start = end + 1  # steps start.. after the last end: unfinished, not stored
         self.episodes.sort(key=lambda e: e[0], reverse=True)
         total, kept = 0, []
         for score, steps in self.episodes:  # best first, until the capacity is reached

@@ -45,7 +45,7 @@ RESULTS = Path(__file__).parent / "results"
 SPLITS = ("seen", "unseen")
 KEEP = ("frames", "batch", "success_rate", "episode_return", "stage2_frac", "stage3_frac", "progress",
         "loss_objective", "loss_critic", "explained_variance", "kl_approx", "clip_fraction", "log_std",
-        "critic_warmup", "bc_weight", "kl_init", "wall_s")
+        "critic_warmup", "bc_weight", "kl_init", "update_steps_frac", "loss_sil", "sil_positive", "wall_s")
 
 
 def student_success(student: Path, cfg: ppo.PPOConfig) -> dict:

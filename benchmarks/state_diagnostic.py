@@ -4,8 +4,8 @@
         --json benchmarks/results/state_diagnostic.json
     python benchmarks/state_diagnostic.py --preset fast --tasks faucet laptop --seeds 0 1 --frames 300000 \
         --json benchmarks/results/state_diagnostic_fast.json
-    python benchmarks/state_diagnostic.py --preset fast_sil --tasks faucet laptop --seeds 0 1 --frames 300000 \
-        --json benchmarks/results/state_diagnostic_fast_sil.json
+    python benchmarks/state_diagnostic.py --preset fast_sil --tasks faucet --seeds 0 1 --frames 300000 \
+        --json benchmarks/results/state_diagnostic_fast_sil_faucet.json      # and --tasks laptop ..._laptop.json
 
 Every task x seed is one ``benchmarks/bench_learning.py`` run with ``--obs state`` (the state vector plus
 the privileged object state: the part's pose, joint angle, initial angle, target and grasp point; no

@@ -620,7 +620,7 @@ def train(cfg: PPOConfig) -> dict:
             frames_done, batches = frames_done + n, batches + 1
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **losses,
                    "log_std": float(action_log_std(learner.actor_critic).mean()),
-                   **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()} if learner.sil else {}),
+                   **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()} if learner.sil is not None else {}),
                    "collect_s": collected - tick, "update_s": updated - collected,
                    "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
                    "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}

@@ -1,6 +1,6 @@
 """Self-imitation learning (Oh et al. 2018, "Self-Imitation Learning", ICML): PPO learns from its own best episodes.
 
-Why: on 2 cores PPO from scratch collects a success now and then (faucet: about one episode in 25-100 in
+Why: on 2 cores PPO from scratch collects a success now and then (faucet: about one episode in 40-130 in
 the state-only diagnostic) but does not build on it: one successful episode among ~16 in a 4k-frame batch
 is one clipped policy-gradient step, and it is gone from the next batch. SIL keeps the best episodes the
 policy has produced so far and, at every PPO minibatch step, also imitates their actions where their
@@ -18,6 +18,10 @@ steps; only episodes that end inside a collected batch are stored (an episode's 
 to the previous batch: their part in this batch still has its exact return to the end). Sampling is
 uniform over the stored steps (the paper prioritises by ``(R - V)+``; uniform is simpler and the
 clipping already zeroes the steps that teach nothing). A resumed run starts with an empty buffer.
+
+Measured (README, 2 seeds each, weight 1): from scratch on the state-only faucet and laptop, no change in
+300k frames; fine-tuning faucet students, seen success up and unseen down, as without it
+(benchmarks/results/state_diagnostic_fast_sil_{faucet,laptop}.json, finetune_faucet_sil.json).
 """
 
 from __future__ import annotations

@@ -229,13 +229,11 @@ def validate(cfg: PPOConfig) -> None:
         value = getattr(cfg, name)
         if value is not None and not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a finite number > 0 (or None), got {value}")
-    if not (math.isfinite(cfg.anchor_coef) and cfg.anchor_coef >= 0):
-        raise ValueError(f"anchor_coef must be a finite number >= 0, got {cfg.anchor_coef}")
-    if cfg.anchor_coef > 0 and not cfg.init_from:
-        raise ValueError("anchor_coef > 0 needs --init-from (the policy to stay near)")
-    for name in ("sil_coef", "sil_value_coef"):
+    for name in ("anchor_coef", "sil_coef", "sil_value_coef"):
         if not (math.isfinite(getattr(cfg, name)) and getattr(cfg, name) >= 0):
             raise ValueError(f"{name} must be a finite number >= 0, got {getattr(cfg, name)}")
+    if cfg.anchor_coef > 0 and not cfg.init_from:
+        raise ValueError("anchor_coef > 0 needs --init-from (the policy to stay near)")
     if cfg.sil_capacity < 1:
         raise ValueError(f"sil_capacity must be >= 1 step, got {cfg.sil_capacity}")
     if cfg.obs_norm_steps < 0:
@@ -526,7 +524,7 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
                     term, parts = sil_loss(learner.actor_critic.get_policy_operator(), learner.critic,
                                            sil.sample(len(idx), generator), cfg.sil_value_coef)
                     loss = loss + cfg.sil_coef * term
-                    loss_td.update({k: torch.tensor(v) for k, v in parts.items()})
+                    loss_td.update({k: torch.tensor(v) for k, v in parts.items()})  # floats -> the loss's 0-d tensors
             learner.optimizer.zero_grad()
             loss.backward()
             if warmup:  # Adam skips parameters without a gradient: the actor does not move at all
@@ -620,7 +618,8 @@ def train(cfg: PPOConfig) -> dict:
             frames_done, batches = frames_done + n, batches + 1
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **losses,
                    "log_std": float(action_log_std(learner.actor_critic).mean()),
-                   **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()} if learner.sil is not None else {}),
+                   **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()}
+                      if learner.sil is not None else {}),
                    "collect_s": collected - tick, "update_s": updated - collected,
                    "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
                    "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}

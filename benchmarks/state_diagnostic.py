@@ -44,16 +44,18 @@ RESULTS = Path(__file__).parent / "results"
 # --preset cpu: departures from the cpu preset, as the laptop state-only runs of the README (bench_learning
 # --set and --init-log-std); --preset fast: the fast preset, which holds them, on the state observation
 SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"],
-            "fast_sil": ["obs=state", "sil_coef=1.0"]}
-PPO_PRESET = {"cpu": "cpu", "fast": "fast", "fast_sil": "fast"}  # the PPO preset each setting starts from
+            "fast_sil": ["obs=state", "sil_coef=1.0"], "fast_synergy": ["obs=state", "hand=synergy"]}
+PPO_PRESET = {"cpu": "cpu", "fast": "fast", "fast_sil": "fast", "fast_synergy": "fast"}  # the PPO preset each setting starts from
 INIT_LOG_STD = -1.2
-TAGS = {"cpu": "dexart", "fast": "fast", "fast_sil": "fast_sil"}  # learning_<task>_state_<tag>_s<seed>.json
+TAGS = {"cpu": "dexart", "fast": "fast", "fast_sil": "fast_sil", "fast_synergy": "fast_synergy"}  # learning_<task>_state_<tag>_s<seed>.json
 DEPARTURES = {"cpu": "state-only observation (diagnostic), lr 3e-4 (1e-4), rewards x 0.01 (x 1), initial log-std "
                      "-1.2 (0), 4k frames per batch (20k), 5 epochs (10)"}
 DEPARTURES["fast"] = (DEPARTURES["cpu"] + ", inputs normalised with the statistics of 2,000 steps of the initial "
                       "policy (raw inputs)")
 DEPARTURES["fast_sil"] = (DEPARTURES["fast"] + ", self-imitation of the best 20k collected steps at weight 1 "
                           "(no replay)")
+DEPARTURES["fast_synergy"] = (DEPARTURES["fast"] + ", a 9-D action: the palm twist and 3 hand synergies, "
+                              "robot.synergy_targets (22-D: 16 hand joint targets)")
 
 
 def load_benchmark(name: str):
@@ -136,7 +138,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--eval-episodes", type=int, default=2, help="per object, seen and unseen")
     parser.add_argument("--preset", default="cpu", choices=list(SETTINGS),
                         help="cpu: DexArt's PPO with the departures above; fast: plus the input normalisation; "
-                             "fast_sil: plus self-imitation learning")
+                             "fast_sil: plus self-imitation learning; fast_synergy: fast with the 3-synergy hand")
     parser.add_argument("--json", type=Path, default=RESULTS / "state_diagnostic.json")
     args = parser.parse_args(argv)
     results = args.json.parent

@@ -28,6 +28,37 @@ ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 7))
 HAND_JOINTS = tuple(f"joint_{i}.0" for i in range(16))
 ACTION_DIM = len(ARM_JOINTS) + len(HAND_JOINTS)  # 22
 
+# The synergy hand (the env's ``hand="synergy"``; not DexArt's, whose policy sets all 16 joint targets):
+# two numbers in [-1, 1] replace the 16 hand entries of the action, one closing index, middle and ring
+# together, one closing the thumb, each moving its joints on a straight line from open (-1) to closed
+# (+1). Closed is where the faucet expert's grasp curls them (flexion joints at their upper limits;
+# the thumb under the palm, ``FaucetSolver.THUMB``); the abductions stay at 0. A 2-D hand makes PPO's
+# exploration noise close the hand as a whole (with 16 independent noises a random hand is half-curled,
+# rarely closed) at the price of every grasp that needs the fingers apart (the laptop expert's hook).
+SYNERGIES = ("knuckles", "curl", "thumb")
+SYNERGY_OPEN = np.array([0.0] * 12 + [0.263, 0.0, 0.0, 0.0])  # (16,) rad, the start pose's hand
+SYNERGY_CLOSED = np.array([0.0, 1.61, 1.709, 1.618] * 3 + [0.767, 1.163, 0.597, 1.719])  # (16,) rad
+SYNERGY_OF_JOINT = np.array([0, 0, 1, 1] * 3 + [2] * 4)  # (16,) the synergy that moves each hand joint
+
+
+def synergy_targets(synergy: np.ndarray) -> np.ndarray:
+    """Hand joint targets (16,) rad of the synergy action (2,) in [-1, 1]: open at -1, closed at +1."""
+    closure = (np.clip(synergy, -1.0, 1.0)[SYNERGY_OF_JOINT] + 1.0) * 0.5  # (16,) in [0, 1]
+    return SYNERGY_OPEN + closure * (SYNERGY_CLOSED - SYNERGY_OPEN)
+
+
+def synergy_action(targets: np.ndarray) -> np.ndarray:
+    """The synergy action (2,) whose targets are nearest to ``targets`` (16,) rad (least squares per
+    synergy, clipped to [-1, 1]); ``synergy_targets`` of it reproduces targets on the synergy lines."""
+    span = SYNERGY_CLOSED - SYNERGY_OPEN
+    out = np.empty(len(SYNERGIES))
+    for k in range(len(SYNERGIES)):
+        m = SYNERGY_OF_JOINT == k
+        closure = float(np.dot(np.asarray(targets)[m] - SYNERGY_OPEN[m], span[m]) / np.dot(span[m], span[m]))
+        out[k] = 2.0 * closure - 1.0
+    return np.clip(out, -1.0, 1.0)
+
+
 ARM_FORCE = 500.0  # N*m per arm joint (DexArt's SAPIEN drive limit; "far larger than real")
 HAND_FORCE = 10.0  # N*m per hand joint (DexArt's SAPIEN drive limit)
 MAX_LINEAR_SPEED = 1.0  # m/s at |a| = 1

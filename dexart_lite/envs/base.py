@@ -28,9 +28,10 @@ from dexart_lite.articulated import PART_LINK, ArticulatedObjects
 from dexart_lite.camera import CameraPose, viewpoint
 from dexart_lite.envs import rewards
 from dexart_lite.objects import ObjectInfo
-from dexart_lite.robot import ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, Robot, RobotState
+from dexart_lite.robot import (ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, SYNERGIES, Robot, RobotState,
+                               synergy_targets)
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
-from dexart_lite.registration import HORIZON, OBSERVATIONS  # HORIZON: control steps per episode (the registered max_episode_steps)
+from dexart_lite.registration import HAND_MODES, HORIZON, OBSERVATIONS  # HORIZON: control steps per episode (the registered max_episode_steps)
 from dexart_lite.sim import BASE_LINK, BulletSim
 from dexart_lite.utils import check_choice
 
@@ -95,6 +96,8 @@ class DexArtEnv(gym.Env):
     observation: "cloud" (DexArt's: point cloud + state) or "state" (a diagnostic, not DexArt's: the state
     vector with the privileged object state appended, ``privileged_state``, and no camera render at all);
     reward: "dexart" (DexArt's terms) or "shaped" (plus ``rewards.shaping``'s stage-2 terms, not DexArt's);
+    hand: "joints" (DexArt's 22-D action: twist + 16 hand joint targets) or "synergy" (not DexArt's: an 8-D
+    action, twist + 2 hand synergies, ``robot.synergy_targets``; the env turns it into the 22-D one);
     depth_image: also observe the camera's metric depth image, ``obs["depth_image"]`` (64, 64) float32 m
     (0 where nothing is hit), the input of the 2-D baseline (not part of DexArt's observation);
     randomize: DexArt's object pose randomisation; dt, frame_skip, solver_iterations: physics;
@@ -118,7 +121,8 @@ class DexArtEnv(gym.Env):
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
                  view_range=None, depth_image: bool = False, randomize: bool = True, dt: float = 0.004, frame_skip: int = 10, solver_iterations: int = 50,
-                 reward: str = "dexart", observation: str = "cloud", render_mode: str | None = None, **unknown):
+                 reward: str = "dexart", observation: str = "cloud", hand: str = "joints",
+                 render_mode: str | None = None, **unknown):
         if unknown:
             valid = [n for n in inspect.signature(DexArtEnv.__init__).parameters if n not in ("self", "unknown")]
             raise ValueError(f"unknown keyword(s) {sorted(unknown)}; valid keywords: {', '.join(valid)}")
@@ -134,7 +138,8 @@ class DexArtEnv(gym.Env):
             raise ValueError("num_points and frame_skip must be >= 1 and dt > 0")
         check_choice("reward", reward, rewards.REWARD_MODES)
         check_choice("observation", observation, OBSERVATIONS)
-        self.reward_mode, self.observation = reward, observation
+        check_choice("hand", hand, HAND_MODES)
+        self.reward_mode, self.observation, self.hand_mode = reward, observation, hand
         self.render_mode, self.randomize, self.frame_skip = render_mode, randomize, int(frame_skip)
         self.control_dt = dt * frame_skip
         self._physics = dict(dt=dt, solver_iterations=solver_iterations)
@@ -171,7 +176,8 @@ class DexArtEnv(gym.Env):
         if depth_image and observation == "cloud":
             intr = self.sensor_config.intrinsics
             self.observation_space["depth_image"] = spaces.Box(0.0, np.inf, (intr.height, intr.width), np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        action_dim = ACTION_DIM if hand == "joints" else 6 + len(SYNERGIES)
+        self.action_space = spaces.Box(-1.0, 1.0, (action_dim,), np.float32)
         self._state: State | None = None
         self._obs: dict | None = None
 
@@ -274,7 +280,7 @@ class DexArtEnv(gym.Env):
     def step(self, action):
         if self._state is None:
             raise RuntimeError("call reset() before step()")
-        action = self._check_action(action)
+        action = self._joint_action(self._check_action(action))  # (22,) whatever the hand mode
         before = self._state
         self.robot.apply_action(action, before.robot.qpos)
         for i in range(self.frame_skip):
@@ -314,11 +320,18 @@ class DexArtEnv(gym.Env):
 
     def _check_action(self, action) -> np.ndarray:
         action = np.asarray(action, dtype=np.float64)
-        if action.shape != (ACTION_DIM,):
-            raise ValueError(f"action must have shape ({ACTION_DIM},), got {action.shape}")
+        if action.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape} (hand={self.hand_mode!r}), "
+                             f"got {action.shape}")
         if not np.all(np.isfinite(action)):
             raise ValueError(f"action has non-finite entries at indices {np.flatnonzero(~np.isfinite(action)).tolist()}")
         return np.clip(action, -1.0, 1.0)
+
+    def _joint_action(self, action: np.ndarray) -> np.ndarray:
+        """The 22-D action (twist + 16 hand joint actions) of a checked action of this env's hand mode."""
+        if self.hand_mode == "joints":
+            return action
+        return np.concatenate([action[:6], self.robot.hand_action(synergy_targets(action[6:]))])
 
     def _read_state(self, action: np.ndarray, flange_before, palm_z_prev: float | None = None) -> State:
         robot = self.robot.read()

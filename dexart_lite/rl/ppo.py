@@ -44,7 +44,7 @@ from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, action_log_s
                                              set_action_log_std, trunk_of)
 from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_encoder
 from dexart_lite.envs.rewards import REWARD_MODES
-from dexart_lite.registration import OBSERVATIONS, TASKS
+from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
 from dexart_lite.rl.checkpoint import architecture, load_checkpoint, network_encoder, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
@@ -87,6 +87,9 @@ class PPOConfig:
                      "(--encoder is then unused); it measures how learnable a task's reward is apart from perception"})
     reward: str = field(default="dexart", metadata={"help": "dexart, or shaped: plus stage-2 terms toward the grasp "
                         "(envs.rewards.shaping; not DexArt's); evaluation reports success either way"})
+    hand: str = field(default="joints", metadata={"help": "joints (DexArt: 16 hand joint targets, a 22-D action) or "
+                      "synergy: 2 numbers open and close fingers and thumb (robot.synergy_targets; an 8-D action, "
+                      "not DexArt's)"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250); for quick tests"})
     seed: int = 0
@@ -145,6 +148,8 @@ class PPOConfig:
             kwargs["reward"] = self.reward
         if self.obs != "cloud":
             kwargs["observation"] = self.obs
+        if self.hand != "joints":
+            kwargs["hand"] = self.hand
         if self.max_episode_steps:
             kwargs["max_episode_steps"] = self.max_episode_steps
         return kwargs
@@ -201,6 +206,7 @@ def validate(cfg: PPOConfig) -> None:
     check_choice("training split", cfg.split, ("seen", "seen_half"))
     check_choice("reward", cfg.reward, REWARD_MODES)
     check_choice("observation", cfg.obs, OBSERVATIONS)
+    check_choice("hand", cfg.hand, HAND_MODES)
     if cfg.obs == "state" and (cfg.pretrained or cfg.freeze_encoder):
         raise ValueError("--obs state has no PointNet: drop --pretrained / --freeze-encoder")
     for name in ("frames", "frames_per_batch", "epochs", "minibatch", "num_points", "checkpoint_every"):

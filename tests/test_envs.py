@@ -145,6 +145,48 @@ def test_bad_actions_raise_and_do_not_break_the_env(env):
     assert np.isfinite(reward)
 
 
+def test_the_synergy_hand_is_the_joint_hand_driven_by_the_synergy_targets():
+    """hand="synergy": a 9-D action (twist + 3 synergies) that runs exactly as the 22-D action with the
+    synergies' joint targets; the wrong action length is refused naming the hand mode."""
+    from dexart_lite.robot import synergy_targets
+
+    synergy, joints = make("faucet", hand="synergy", **SMALL), make("faucet", **SMALL)
+    assert synergy.action_space.shape == (9,) and joints.action_space.shape == (22,)
+    synergy.reset(seed=3), joints.reset(seed=3)
+    with pytest.raises(ValueError, match=r"shape \(9,\) \(hand='synergy'\)"):
+        synergy.step(np.zeros(22))
+    robot = joints.unwrapped.robot
+    rng = np.random.default_rng(0)
+    for _ in range(8):
+        a = rng.uniform(-1, 1, 9) * np.r_[[0.3] * 6, [1.0] * 3]
+        full = np.concatenate([a[:6], robot.hand_action(synergy_targets(a[6:]))])
+        obs_s, r_s, *_ = synergy.step(a)
+        obs_j, r_j, *_ = joints.step(full)
+        np.testing.assert_array_equal(obs_s["state"], obs_j["state"])
+        assert r_s == r_j
+    with pytest.raises(ValueError, match="valid choices: joints, synergy"):
+        make("faucet", hand="gripper")
+    synergy.close(), joints.close()
+
+
+def test_the_laptop_expert_projected_on_the_synergies_still_opens_a_laptop():
+    """The 3 synergies can express a lid grasp: the scripted expert's hand targets, projected on them
+    (``SynergyScriptedPolicy``), open a seen laptop (benchmarks/synergy_expert.py measures all tasks)."""
+    from dexart_lite.experts import SynergyScriptedPolicy
+
+    env = make("laptop", num_points=32, hand="synergy")
+    expert = SynergyScriptedPolicy(env)
+    obs, _ = env.reset(seed=0)
+    success = False
+    for _ in range(250):
+        obs, _, terminated, truncated, info = env.step(expert(obs))
+        success |= info["success"]
+        if terminated or truncated:
+            break
+    assert success
+    env.close()
+
+
 def test_unknown_names_raise_listing_the_choices():
     with pytest.raises(ValueError, match="valid choices: faucet, bucket, laptop, toilet"):
         make("fridge")

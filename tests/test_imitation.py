@@ -417,6 +417,36 @@ def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, mon
     assert (Path(row["student"]) / "heldout_seen_e1_seed7.json").exists()
 
 
+def test_finetune_summary_pools_the_paired_heldout_changes_of_every_variant(tmp_path, load_benchmark):
+    """benchmarks/finetune_summary.py: one row per seed of every finetune_<task>*.json with held-out results
+    (smoke runs and files without them are left out), the changes averaged by hand."""
+    bench = load_benchmark("finetune_summary")
+
+    def write(name, rows, **extra):
+        per_seed = [{"seed": r[0], "student": f"s{r[0]}"} for r in rows]
+        heldout = {"episodes_per_object": 20, "per_seed": [
+            {"seed": r[0], "student_seen": r[1], "seen_success": r[2], "student_unseen": r[3], "unseen_success": r[4]}
+            for r in rows]}
+        (tmp_path / name).write_text(json.dumps({"frames": 300, "variant": name[:-5], "per_seed": per_seed,
+                                                 "heldout": heldout, **extra}))
+
+    write("finetune_faucet.json", [(0, 0.5, 0.7, 0.5, 0.4), (1, 0.6, 0.6, 0.5, 0.6)])
+    write("finetune_faucet_x.json", [(0, 0.5, 0.4, 0.5, 0.5)])
+    write("finetune_faucet_smoke.json", [(0, 0.0, 1.0, 0.0, 1.0)], fast_mode=True)
+    (tmp_path / "finetune_faucet_old.json").write_text(json.dumps({"frames": 300, "per_seed": []}))
+    write("finetune_laptop.json", [(0, 0.0, 1.0, 0.0, 1.0)])
+    result = bench.main(["--task", "faucet", "--results", str(tmp_path), "--json", str(tmp_path / "sum.json")])
+    assert [(r["file"], r["seed"]) for r in result["runs"]] == [
+        ("finetune_faucet.json", 0), ("finetune_faucet.json", 1), ("finetune_faucet_x.json", 0)]
+    seen, unseen = result["pooled"]["seen"], result["pooled"]["unseen"]
+    assert seen["mean_change"] == pytest.approx((0.2 + 0.0 - 0.1) / 3)
+    assert (seen["up"], seen["equal"], seen["down"]) == (1, 1, 1)
+    assert unseen["mean_change"] == pytest.approx((-0.1 + 0.1 + 0.0) / 3)
+    assert unseen["std_change"] == pytest.approx(0.1)  # sample std of (-0.1, 0.1, 0)
+    with pytest.raises(SystemExit, match="no finetune_toilet"):
+        bench.main(["--task", "toilet", "--results", str(tmp_path)])
+
+
 def test_time_budget_stops_adding_rounds(tmp_path):
     cfg = tiny_distill_config(tmp_path, max_minutes=1e-4, eval_episodes=0)  # collects its own demonstrations
     result = distill(cfg)

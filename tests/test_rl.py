@@ -456,6 +456,21 @@ def test_tiny_run_with_self_imitation_logs_its_loss_and_buffer(tmp_path):
     assert ppo.PPOConfig().sil_coef == 0.0  # DexArt: no replay
 
 
+def test_tiny_run_with_the_synergy_hand_trains_and_evaluates_a_9d_policy(tmp_path):
+    """hand="synergy": the policy has 9 action dims, and its checkpoint rebuilds the synergy env to evaluate."""
+    from dexart_lite.rl.checkpoint import observation_kwargs
+
+    cfg = tiny_config(tmp_path, obs="state", hand="synergy", frames=200, frames_per_batch=100, minibatch=50,
+                      workers=0, eval_episodes=1)
+    result = ppo.train(cfg)
+    payload = load_checkpoint(result["checkpoint"])
+    assert payload["dims"]["action_dim"] == 9 and observation_kwargs(payload)["hand"] == "synergy"
+    assert cli.main(["eval", "--ckpt", result["checkpoint"], "--split", "unseen", "--episodes-per-object", "1"]) == 0
+    with pytest.raises(ValueError, match="valid choices: joints, synergy"):
+        ppo.validate(tiny_config(tmp_path, hand="gripper"))
+    assert ppo.PPOConfig().hand == "joints"  # DexArt: 16 hand joint targets
+
+
 def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
     it needs --tag, and fields the script sets itself are refused."""
@@ -509,6 +524,9 @@ def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_id
     assert bench.run_args("faucet", 0, 800, 1, tmp_path, tmp_path, "fast_sil")[:6] == [
         "--task", "faucet", "--preset", "fast", "--seed", "0"]
     assert bench.finished(path, frames=800, eval_episodes=1, preset="fast_sil") is None
+    # --preset fast_synergy: the fast PPO preset with the 9-D synergy hand
+    assert bench.run_args("faucet", 0, 800, 1, tmp_path, tmp_path, "fast_synergy")[9:12] == [
+        "--set", "obs=state", "hand=synergy"]
 
 
 def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark, git_checkout):

@@ -7,7 +7,8 @@ import pytest
 import yourdfpy
 
 from dexart_lite import paths, robot_model
-from dexart_lite.robot import ACTION_DIM, HAND_JOINTS, Robot
+from dexart_lite.robot import (ACTION_DIM, HAND_JOINTS, SYNERGIES, SYNERGY_CLOSED, SYNERGY_OPEN, Robot, synergy_action,
+                               synergy_targets)
 from dexart_lite.sim import BulletSim
 from tests.scene import control_step
 
@@ -111,6 +112,25 @@ def test_hand_action_mapping_round_trips(sim_robot):
     a = np.linspace(-1, 1, 16)
     np.testing.assert_allclose(robot.hand_action(robot.hand_targets(a)), a, atol=1e-12)
     np.testing.assert_allclose(robot.hand_targets(np.zeros(16)), (robot.lower[6:] + robot.upper[6:]) / 2)
+
+
+def test_synergies_move_the_hand_on_straight_lines_inside_the_joint_limits(sim_robot):
+    """The synergy hand: -1 is open, +1 closed, 0 half-way on every joint of the synergy; each synergy moves
+    its own joints only; the projection of targets on the lines gives the synergy action back."""
+    _, robot = sim_robot
+    n = len(SYNERGIES)
+    np.testing.assert_allclose(synergy_targets(-np.ones(n)), SYNERGY_OPEN)
+    np.testing.assert_allclose(synergy_targets(np.ones(n)), SYNERGY_CLOSED)
+    np.testing.assert_allclose(synergy_targets(np.zeros(n)), (SYNERGY_OPEN + SYNERGY_CLOSED) / 2)
+    np.testing.assert_allclose(synergy_targets(np.full(n, 7.0)), SYNERGY_CLOSED)  # clipped like any action
+    lo, hi = robot.lower[6:], robot.upper[6:]
+    assert np.all((SYNERGY_OPEN >= lo) & (SYNERGY_OPEN <= hi) & (SYNERGY_CLOSED >= lo) & (SYNERGY_CLOSED <= hi))
+    only_curl = synergy_targets(np.array([-1.0, 1.0, -1.0]))  # SYNERGIES: knuckles, curl, thumb
+    moved = np.flatnonzero(only_curl != SYNERGY_OPEN)
+    assert moved.tolist() == [2, 3, 6, 7, 10, 11]  # PIP and DIP of index, middle, ring
+    a = np.array([0.3, -0.5, 0.9])
+    np.testing.assert_allclose(synergy_action(synergy_targets(a)), a, atol=1e-12)
+    np.testing.assert_allclose(synergy_action(robot.hand_targets(np.ones(16))), [1.0, 1.0, 1.0])  # clipped
 
 
 def test_two_simulations_in_one_process_do_not_interfere():

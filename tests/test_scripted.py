@@ -166,6 +166,20 @@ def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch, load_benchmark
     assert rows[0]["success_rate"] == 1.0
 
 
+def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a_smoke_run(
+        tmp_path, monkeypatch, load_benchmark):
+    """benchmarks/synergy_expert.py in fast mode: one row per task and split from a hand="synergy" env (whose
+    action check refuses a 22-D action); a smoke run is not set beside the committed full-hand success."""
+    import json
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("synergy_expert")
+    bench.main(["--tasks", "laptop", "--splits", "seen", "--json", str(tmp_path / "s.json")])
+    rows = json.loads((tmp_path / "s.json").read_text())["rows"]
+    assert [(r["task"], r["split"]) for r in rows] == [("laptop", "seen")]
+    assert rows[0]["synergy_success"] == 1.0 and rows[0]["full_hand_success"] is None
+
+
 # ----------------------------------------------------------------------------- physics settings
 def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting(tmp_path, monkeypatch,
                                                                                  load_benchmark):

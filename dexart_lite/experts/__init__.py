@@ -27,6 +27,7 @@ from dexart_lite.experts.bucket import BucketSolver
 from dexart_lite.experts.faucet import FaucetSolver
 from dexart_lite.experts.laptop import FeedbackLidSolver
 from dexart_lite.experts.lid import LidSolver
+from dexart_lite.robot import synergy_action
 from dexart_lite.utils import check_choice
 
 # Laptop and toilet: the state-feedback lid expert (imitable, see FeedbackLidSolver). The phase-machine
@@ -58,5 +59,15 @@ class ScriptedPolicy:
         return np.clip(self.solver.act(env._state), -1.0, 1.0)
 
 
+class SynergyScriptedPolicy(ScriptedPolicy):
+    """The scripted expert for an env with ``hand="synergy"``: its twist, and its 16 hand joint targets
+    projected on the 3 synergies (``robot.synergy_action``). How much of an expert survives the projection
+    says whether the synergy hand can still do the task (``benchmarks/synergy_expert.py``)."""
+
+    def __call__(self, obs=None) -> np.ndarray:
+        a = super().__call__(obs)  # (22,)
+        return np.concatenate([a[:6], synergy_action(self.env.robot.hand_targets(a[6:]))])  # (9,)
+
+
 __all__ = ["SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "FaucetSolver", "FeedbackLidSolver", "LidSolver", "PartFrame",
-           "ScriptedPolicy", "Solver"]
+           "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 import dexart_lite
-from dexart_lite.experts import SOLVERS, ScriptedPolicy
+from dexart_lite.experts import SOLVERS, ScriptedPolicy, SynergyScriptedPolicy
 from dexart_lite.rollout import noisy, run_episodes
 from dexart_lite.utils import check_choice
 
@@ -27,7 +27,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     Gaussian noise added to every action dimension before the env's clip to [-1, 1], as PPO's sampled
     actions (``benchmarks/exploration_noise.py``); drawn from an RNG seeded with ``seed``, separate
     from the env's. ``env_kwargs``: further keywords of the env (e.g. ``solver_iterations``, for
-    ``benchmarks/bench_physics.py``).
+    ``benchmarks/bench_physics.py``; ``hand="synergy"``: the expert's hand projected on the synergies).
     """
     from dexart_lite.envs import make
 
@@ -35,7 +35,8 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
         raise ValueError(f"action_noise must be a finite std >= 0, got {action_noise}")
     env = make(task, split=split, object_names=object_names, **{"num_points": 32, **(env_kwargs or {})})
     names = env.unwrapped.objects.names
-    policy = noisy(ScriptedPolicy(env), action_noise, np.random.default_rng(seed))
+    expert = SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy
+    policy = noisy(expert(env), action_noise, np.random.default_rng(seed))
     episodes = [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]
     results = run_episodes(policy, env, episodes, progress=progress, desc=f"solve {task}/{split}")
     env.close()

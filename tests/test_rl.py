@@ -525,7 +525,7 @@ def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_id
         "--task", "faucet", "--preset", "fast", "--seed", "0"]
     assert bench.finished(path, frames=800, eval_episodes=1, preset="fast_sil") is None
     # --preset fast_synergy: the fast PPO preset with the 9-D synergy hand
-    assert bench.run_args("faucet", 0, 800, 1, tmp_path, tmp_path, "fast_synergy")[9:12] == [
+    assert bench.run_args("faucet", 0, 800, 1, tmp_path, tmp_path, "fast_synergy")[10:13] == [
         "--set", "obs=state", "hand=synergy"]
 
 

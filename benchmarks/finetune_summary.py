@@ -35,7 +35,8 @@ def runs(task: str, results: Path = RESULTS) -> list[dict]:
         students = {r["seed"]: r.get("student") for r in result["per_seed"]}
         for r in result["heldout"]["per_seed"]:
             rows.append({"file": path.name, "variant": result.get("variant") or "finetune",
-                         "overrides": result.get("overrides", {}), "seed": r["seed"], "student": students.get(r["seed"]),
+                         "overrides": result.get("overrides", {}), "seed": r["seed"],
+                         "student": students.get(r["seed"]),
                          "frames": result["frames"], "episodes_per_object": result["heldout"]["episodes_per_object"],
                          **{f"{w}_{s}": r[k] for s in SPLITS
                             for w, k in (("before", f"student_{s}"), ("after", f"{s}_success"))}})

@@ -45,9 +45,11 @@ RESULTS = Path(__file__).parent / "results"
 # --set and --init-log-std); --preset fast: the fast preset, which holds them, on the state observation
 SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"],
             "fast_sil": ["obs=state", "sil_coef=1.0"], "fast_synergy": ["obs=state", "hand=synergy"]}
-PPO_PRESET = {"cpu": "cpu", "fast": "fast", "fast_sil": "fast", "fast_synergy": "fast"}  # the PPO preset each setting starts from
+# the PPO preset each setting starts from
+PPO_PRESET = {"cpu": "cpu", "fast": "fast", "fast_sil": "fast", "fast_synergy": "fast"}
 INIT_LOG_STD = -1.2
-TAGS = {"cpu": "dexart", "fast": "fast", "fast_sil": "fast_sil", "fast_synergy": "fast_synergy"}  # learning_<task>_state_<tag>_s<seed>.json
+# learning_<task>_state_<tag>_s<seed>.json
+TAGS = {"cpu": "dexart", "fast": "fast", "fast_sil": "fast_sil", "fast_synergy": "fast_synergy"}
 DEPARTURES = {"cpu": "state-only observation (diagnostic), lr 3e-4 (1e-4), rewards x 0.01 (x 1), initial log-std "
                      "-1.2 (0), 4k frames per batch (20k), 5 epochs (10)"}
 DEPARTURES["fast"] = (DEPARTURES["cpu"] + ", inputs normalised with the statistics of 2,000 steps of the initial "

@@ -61,7 +61,8 @@ def main(argv=None) -> dict:
     print("|---|---|---|---|---|")
     for r in rows:
         full = "n/a" if r["full_hand_success"] is None else f"{r['full_hand_success']:.2f}"
-        print(f"| {r['task']} | {r['split']} | {full} | {r['synergy_success']:.2f} | {r['synergy_mean_max_stage']:.2f} |")
+        print(f"| {r['task']} | {r['split']} | {full} | {r['synergy_success']:.2f} | "
+              f"{r['synergy_mean_max_stage']:.2f} |")
     result = {"episodes_per_object": args.episodes_per_object, "seed": args.seed, "rows": rows,
               "command": command_line("benchmarks/synergy_expert.py", argv), "machine": machine_info(),
               "fast_mode": fast_mode()}

@@ -13,7 +13,7 @@ from dexart_lite.utils import check_choice
 TASKS = ("faucet", "bucket", "laptop", "toilet")
 HORIZON = 250  # control steps per episode (10 s at 25 Hz): the registered max_episode_steps
 OBSERVATIONS = ("cloud", "state")  # the env's ``observation``: DexArt's point cloud + state; the state-only diagnostic
-HAND_MODES = ("joints", "synergy")  # the env's ``hand``: DexArt's 16 joint targets; 2 synergies (robot.py)
+HAND_MODES = ("joints", "synergy")  # the env's ``hand``: DexArt's 16 joint targets; 3 synergies (robot.py)
 ENV_IDS = [f"DexArtLite/{task.capitalize()}-v0" for task in TASKS]
 
 

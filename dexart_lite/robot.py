@@ -29,12 +29,15 @@ HAND_JOINTS = tuple(f"joint_{i}.0" for i in range(16))
 ACTION_DIM = len(ARM_JOINTS) + len(HAND_JOINTS)  # 22
 
 # The synergy hand (the env's ``hand="synergy"``; not DexArt's, whose policy sets all 16 joint targets):
-# two numbers in [-1, 1] replace the 16 hand entries of the action, one closing index, middle and ring
-# together, one closing the thumb, each moving its joints on a straight line from open (-1) to closed
-# (+1). Closed is where the faucet expert's grasp curls them (flexion joints at their upper limits;
-# the thumb under the palm, ``FaucetSolver.THUMB``); the abductions stay at 0. A 2-D hand makes PPO's
-# exploration noise close the hand as a whole (with 16 independent noises a random hand is half-curled,
-# rarely closed) at the price of every grasp that needs the fingers apart (the laptop expert's hook).
+# three numbers in [-1, 1] replace the 16 hand entries of the action: "knuckles" bends the MCP joints of
+# index, middle and ring together, "curl" their PIP and DIP joints, "thumb" the 4 thumb joints, each
+# moving its joints on a straight line from open (-1, the start pose's hand) to closed (+1). Closed:
+# the finger flexions at their upper limits (the faucet and laptop experts' curl), the thumb in the lid
+# expert's lifting pose (``LidSolver.THUMB_LIFT["laptop"]``); the abductions stay at 0. Knuckles and curl apart
+# hold the laptop expert's hook (knuckles bent, fingers straight, then curled over the edge). The idea:
+# PPO's noise on 3 numbers closes the hand as a whole, where 16 independent noises give a half-curled
+# hand that rarely closes. Measured: the experts projected on these lines keep most of their success
+# (benchmarks/synergy_expert.py), and PPO from scratch did not learn more with it (README).
 SYNERGIES = ("knuckles", "curl", "thumb")
 SYNERGY_OPEN = np.array([0.0] * 12 + [0.263, 0.0, 0.0, 0.0])  # (16,) rad, the start pose's hand
 SYNERGY_CLOSED = np.array([0.0, 1.61, 1.709, 1.618] * 3 + [0.767, 1.163, 0.597, 1.719])  # (16,) rad
@@ -42,13 +45,13 @@ SYNERGY_OF_JOINT = np.array([0, 0, 1, 1] * 3 + [2] * 4)  # (16,) the synergy tha
 
 
 def synergy_targets(synergy: np.ndarray) -> np.ndarray:
-    """Hand joint targets (16,) rad of the synergy action (2,) in [-1, 1]: open at -1, closed at +1."""
+    """Hand joint targets (16,) rad of the synergy action (3,) in [-1, 1]: open at -1, closed at +1."""
     closure = (np.clip(synergy, -1.0, 1.0)[SYNERGY_OF_JOINT] + 1.0) * 0.5  # (16,) in [0, 1]
     return SYNERGY_OPEN + closure * (SYNERGY_CLOSED - SYNERGY_OPEN)
 
 
 def synergy_action(targets: np.ndarray) -> np.ndarray:
-    """The synergy action (2,) whose targets are nearest to ``targets`` (16,) rad (least squares per
+    """The synergy action (3,) whose targets are nearest to ``targets`` (16,) rad (least squares per
     synergy, clipped to [-1, 1]); ``synergy_targets`` of it reproduces targets on the synergy lines."""
     span = SYNERGY_CLOSED - SYNERGY_OPEN
     out = np.empty(len(SYNERGIES))

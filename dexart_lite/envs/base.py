@@ -96,8 +96,8 @@ class DexArtEnv(gym.Env):
     observation: "cloud" (DexArt's: point cloud + state) or "state" (a diagnostic, not DexArt's: the state
     vector with the privileged object state appended, ``privileged_state``, and no camera render at all);
     reward: "dexart" (DexArt's terms) or "shaped" (plus ``rewards.shaping``'s stage-2 terms, not DexArt's);
-    hand: "joints" (DexArt's 22-D action: twist + 16 hand joint targets) or "synergy" (not DexArt's: an 8-D
-    action, twist + 2 hand synergies, ``robot.synergy_targets``; the env turns it into the 22-D one);
+    hand: "joints" (DexArt's 22-D action: twist + 16 hand joint targets) or "synergy" (not DexArt's: a 9-D
+    action, twist + 3 hand synergies, ``robot.synergy_targets``; the env turns it into the 22-D one);
     depth_image: also observe the camera's metric depth image, ``obs["depth_image"]`` (64, 64) float32 m
     (0 where nothing is hit), the input of the 2-D baseline (not part of DexArt's observation);
     randomize: DexArt's object pose randomisation; dt, frame_skip, solver_iterations: physics;

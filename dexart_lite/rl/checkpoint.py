@@ -62,7 +62,7 @@ def architecture(dims: dict) -> dict:
 def observation_kwargs(payload: dict) -> dict:
     """The env keywords that give a checkpoint's network the observation it was trained on: its cloud
     size, the imagined points (on unless switched off) and, for the 2-D baseline, the depth image; and
-    the action it gives (the synergy hand's 8-D action)."""
+    the action it gives (the synergy hand's 9-D action)."""
     cfg = payload["config"]
     kwargs = {"num_points": cfg["num_points"], "imagination": cfg.get("imagination", True)}
     if cfg.get("encoder") == "depth_cnn":

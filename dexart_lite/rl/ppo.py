@@ -88,7 +88,7 @@ class PPOConfig:
     reward: str = field(default="dexart", metadata={"help": "dexart, or shaped: plus stage-2 terms toward the grasp "
                         "(envs.rewards.shaping; not DexArt's); evaluation reports success either way"})
     hand: str = field(default="joints", metadata={"help": "joints (DexArt: 16 hand joint targets, a 22-D action) or "
-                      "synergy: 2 numbers open and close fingers and thumb (robot.synergy_targets; an 8-D action, "
+                      "synergy: 3 numbers close knuckles, finger curl and thumb (robot.synergy_targets; a 9-D action, "
                       "not DexArt's)"})
     num_points: int = field(default=512, metadata={"help": "observed points per cloud (+96 imagined)"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250); for quick tests"})

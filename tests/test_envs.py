@@ -223,11 +223,44 @@ def test_the_world_holds_one_object_and_a_rebuilt_world_replays_the_same_episode
         np.testing.assert_array_equal(x, y)
 
 
+def test_the_undrawn_arm_links_and_scenery_change_no_cropped_point(env):
+    """The depth camera skips the arm's base and first link and the scenery, which never reach the crop
+    box or the space between it and the camera: drawing them changes the frame, not the cropped cloud."""
+    from dexart_lite.experts import ScriptedPolicy
+
+    u = env.unwrapped
+    assert [link for link, _ in u._undrawn_links] == [u.robot.body.link("link_base"), u.robot.body.link("link1")]
+    obs, _ = env.reset(seed=3)
+    expert, frames_differ = ScriptedPolicy(env), False
+    for t in range(60):
+        obs, *_ = env.step(expert(obs))
+        if t % 15 != 14:
+            continue
+        skipped_frame, skipped = u.sensor.camera.render_depth(), u.sensor.visible_points()
+        u._show_undrawn_links(True)
+        u._show_scenery(True)
+        try:
+            drawn_frame, drawn = u.sensor.camera.render_depth(), u.sensor.visible_points()
+        finally:
+            u._show_undrawn_links(False)
+            u._show_scenery(u._draw_scenery)
+        frames_differ |= not np.array_equal(skipped_frame[1], drawn_frame[1])  # the base is in view
+        for x, y in zip(skipped, drawn):
+            np.testing.assert_array_equal(x, y)
+    assert frames_differ
+    anywhere = make(u.CATEGORY, view_range=(60, 20), **SMALL)  # eyes all around: every link may matter
+    assert anywhere.unwrapped._undrawn_links == []
+    anywhere.close()
+
+
 def test_render_returns_an_rgb_image():
     env = make("laptop", render_mode="rgb_array", **SMALL)
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8 and frame.std() > 5
+    u = env.unwrapped
+    u._show_undrawn_links(True)  # the viewer draws what the depth camera skips
+    np.testing.assert_array_equal(env.render(), frame)
     env.close()
 
 

@@ -157,6 +157,10 @@ class DexArtEnv(gym.Env):
              for p in (-view_range[1], view_range[1])]
         # Scenery cropped away and unable to hide anything is not drawn (it would cost render time only).
         self._draw_scenery = any(self._scenery_can_occlude(pose) for pose in corners)
+        # Every place the camera's eye can be (m, world): a grid over the viewpoint range, for ``_arm_links_out_of_view``.
+        self._eyes = np.array([self._nominal_camera.position]) if view_range is None else np.array(
+            [viewpoint(self._nominal_camera, a, p).position for a in np.linspace(-view_range[0], view_range[0], 13)
+             for p in np.linspace(-view_range[1], view_range[1], 5)])
         self.sensor_config = SensorConfig(num_points=num_points, imagination=imagination, point_noise=point_noise,
                                           camera_noise=camera_noise, view_range=view_range,
                                           depth_image=bool(depth_image))
@@ -196,6 +200,10 @@ class DexArtEnv(gym.Env):
         if not self._draw_scenery:
             self._show_scenery(False)
         self.robot = Robot(self.sim, self.ROBOT_BASE, control_dt=self.control_dt)
+        # Arm links that can never matter to the cloud are not drawn either (the depth image of the 2-D
+        # baseline shows the whole frame, so there every link is drawn).
+        self._undrawn_links = [] if self.sensor_config.depth_image else self._arm_links_out_of_view()
+        self._show_undrawn_links(False)
         self.labels = pc.LabelTable()
         for name, link in self.robot.body.links.items():
             self.labels.set(self.robot.body.uid, link, pc.ARM if name in ARM_LINKS or link == BASE_LINK else pc.HAND)
@@ -305,11 +313,13 @@ class DexArtEnv(gym.Env):
         pose, hidden = camera.pose, self._scenery_hidden
         camera.set_pose(self.VIEWER)
         self._show_scenery(True)
+        self._show_undrawn_links(True)
         try:
             return camera.render_rgb(*VIEWER_SIZE)
         finally:
             camera.set_pose(pose)
             self._show_scenery(not hidden)
+            self._show_undrawn_links(False)
 
     def close(self):
         if getattr(self, "sim", None) is not None:
@@ -406,6 +416,40 @@ class DexArtEnv(gym.Env):
         above_table = position[2] > margin
         before_pedestal = self.PEDESTAL is None or position[0] - self.ROBOT_BASE[0] > self.CROP[0] + margin
         return not (above_table and before_pedestal)
+
+    def _arm_links_out_of_view(self, margin: float = 0.1) -> list[tuple[int, tuple]]:
+        """The arm's base and first link where they lie, at every joint angle, outside the box around
+        the crop box and every eye position (eyes ``margin`` m wider, for the per-reset camera
+        perturbation), with their colours.
+
+        A point matters to the cloud only if it is in the crop box or between the eye and a point of
+        it, i.e. inside the convex hull of the eye and the box, which this box contains; a link that
+        never enters it changes no cropped point, so the depth camera need not draw it (TinyRenderer's
+        time follows what it draws; ``tests/test_envs.py`` checks the clouds are identical). Bounds,
+        from the collision boxes (``getAABB``; the visual hulls are made of collision-hull vertices,
+        ``robot_model.simplified_arm_visual``, so they lie inside): the fixed base its box; link 1 the
+        cylinder its box corners sweep about joint 1's axis. The links beyond swing too far to bound.
+        """
+        lo = np.minimum(np.add(self.ROBOT_BASE, self.CROP[0::2]), self._eyes.min(0) - margin)
+        hi = np.maximum(np.add(self.ROBOT_BASE, self.CROP[1::2]), self._eyes.max(0) + margin)
+        c, uid = self.sim.c, self.robot.body.uid
+        colour = {v[1]: tuple(v[7]) for v in c.getVisualShapeData(uid)}
+        base, link1 = self.robot.body.link(ARM_LINKS[0]), self.robot.body.link(ARM_LINKS[1])
+        boxes = {link: np.array(c.getAABB(uid, link)) for link in (base, link1)}  # (2, 3) world, m
+        corners = np.array([[x, y, z] for x in boxes[link1][:, 0] for y in boxes[link1][:, 1] for z in boxes[link1][:, 2]])
+        (origin,), (quat,) = self.sim.link_frames(self.robot.body, [link1])  # joint 1's frame
+        axis = pc.quat_to_matrix(quat) @ np.asarray(c.getJointInfo(uid, link1)[13])  # world, unit
+        along = (corners - origin) @ axis  # (8,) heights along the axis
+        radius = np.linalg.norm(corners - origin - along[:, None] * axis, axis=1).max()  # from the axis
+        ends = origin + np.outer([along.min(), along.max()], axis)  # (2, 3) the cylinder's end centres
+        sweep = radius * np.sqrt(np.clip(1.0 - axis**2, 0.0, None))  # (3,) half-extent of its end discs
+        boxes[link1] = np.stack([ends.min(0) - sweep, ends.max(0) + sweep])
+        return [(link, colour[link]) for link, box in boxes.items()
+                if link in colour and (np.any(box[1] < lo) or np.any(box[0] > hi))]
+
+    def _show_undrawn_links(self, visible: bool) -> None:
+        for link, rgba in self._undrawn_links:
+            self.sim.c.changeVisualShape(self.robot.body.uid, link, rgbaColor=rgba if visible else (*rgba[:3], 0.0))
 
     def _show_scenery(self, visible: bool) -> None:
         self._scenery_hidden = not visible

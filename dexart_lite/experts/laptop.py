@@ -7,7 +7,6 @@ import numpy as np
 from dexart_lite.experts.controller import hand_shape
 from dexart_lite.experts.geometry import Pose, pursue
 from dexart_lite.experts.lid import LidSolver
-from dexart_lite.robot import synergy_action, synergy_targets
 
 
 class FeedbackLidSolver(LidSolver):
@@ -25,17 +24,14 @@ class FeedbackLidSolver(LidSolver):
       face, hand and thumb still in their lifting pose) -> over the edge, off the inner face -> palm on
       the inner face; the fingers curl once the palm
       is within ``CLOSE_AT`` of the inner-face pose; with the fingers curled (read from the hand's
-      joint angles) and the palm within ``HOLD`` of the grasp, the hand rides the lid: a steady sweep up
-      or down (see ``SWEEP_SPLIT``) that turns back at its ends, until the lid passes its target angle.
+      joint angles) and the palm within ``HOLD`` of the grasp, the hand rides the lid to its target.
       A grasp lost on the way opens the fingers and the path starts again from where the hand is.
 
     Tuned for a hand that is not where it was asked to be (a noisy student's): the gates for curling and
     riding are 2.5 and 5 cm wide, the palm aims just short of the inner face, and the fingers close as
     a hook to their joint limits (see the constants). Success under Gaussian action noise of std 0.3 /
-    0.5, seen laptops, 3 episodes per object: 0.73 / 0.15 (unseen 0.78 / 0.17) with the sweeping ride
-    (``benchmarks/results/exploration_noise_laptop_sweep.json``); 0.73 / 0.27 (unseen 0.56 / 0.22) with
-    the ride aimed at the target, 0.27 / 0.00 before the gates were widened
-    (``benchmarks/results/exploration_noise_laptop.json`` and its history).
+    0.5, seen laptops, 3 episodes per object: 0.73 / 0.27 (unseen 0.56 / 0.22), against 0.27 / 0.00
+    before these changes (``benchmarks/results/exploration_noise_laptop.json`` and its history).
 
     ``region`` names the rule that chose the last action ("approach", "lift", "wrap", "close" or
     "ride"), for plots and tests; it is an output, never an input.
@@ -60,19 +56,6 @@ class FeedbackLidSolver(LidSolver):
     # at the laptop's 0.25 they fly past the wrap and the grasp misses them more often (seen toilets,
     # 3 episodes each: 0.90 at 0.25, 0.94 at 0.15).
     LIFT_LEAD = {"laptop": 0.25, "toilet": 0.15}
-    # The ride sweeps the lid one way at a steady pace, never aiming at the target angle: the target is an
-    # annotation no observation shows (a student would stop at the mean target), while success counts at
-    # any step, so a sweep through the target's window while grasping succeeds whatever the target.
-    # Which way: up when the grasp closes on a lid below SWEEP_SPLIT (rad; the lowest targets, 1.40-1.41,
-    # have windows up to 1.46), down when above (the wrap leaves most lids near their upper limit, 0.3-0.5
-    # rad past the target). The direction is held in the thumb, aside during the ride: its last joint
-    # (FLAG_JOINT among the 16) goes to FLAG_DOWN before the grasp closes on a lid above SWEEP_SPLIT and
-    # stays there while riding, so the rule reads the direction from the joint angles, a part of every
-    # observation, and needs no memory.
-    SWEEP_SPLIT = 1.45  # rad
-    RIDE_LEAD = 0.12  # rad: the palm follows the grasp on the lid turned this much further
-    SWEEP_LOW = 1.3  # rad: a downward sweep turns back here (below every target's window)
-    FLAG_JOINT, FLAG_DOWN = 15, 0.8  # thumb tip flexion (rad) while sweeping down
 
     def __init__(self, env):
         super().__init__(env)
@@ -89,25 +72,15 @@ class FeedbackLidSolver(LidSolver):
         # wherever the knuckles end up past the edge, and a joint target at its limit is one that
         # action noise can only push one way (the env clips it).
         self.wrap_shape = hand_shape(finger=(0.0, *self.HOOK), thumb=self.THUMB_ASIDE)
-        # The flag's reading: halfway between the angles the flag joint is driven to, down and up (the
-        # synergy hand moves the thumb's joints together, so there they are not FLAG_DOWN and 0).
-        executed = (lambda h: synergy_targets(synergy_action(h))) if env.hand_mode == "synergy" else (lambda h: h)
-        self._flag_threshold = 0.5 * sum(executed(self._flagged(self.wrap_shape, d))[self.FLAG_JOINT] for d in (False, True))
         self._flex = np.r_[1:4, 5:8, 9:12]  # MCP, PIP, DIP of index, middle, ring among the 16 hand joints
         self._open, self._curl = (float(np.mean(shape[self._flex])) for shape in (self.wrap_open, self.wrap_shape))
-
-    def _flagged(self, shape: np.ndarray, down: bool) -> np.ndarray:
-        """``shape`` (16,) with the thumb's flag joint at its sweep-down or sweep-up angle."""
-        shape = shape.copy()
-        shape[self.FLAG_JOINT] = self.FLAG_DOWN if down else 0.0
-        return shape
 
     def curl(self, s) -> float:
         """The fingers' curl, 0 open to 1 closed (mean flexion of index, middle and ring)."""
         return (float(np.mean(s.robot.qpos[6:][self._flex])) - self._open) / (self._curl - self._open)
 
     def step(self, s) -> np.ndarray:
-        q = s.q
+        q, target = s.q, s.obj.joint_target
         lid = self.frame.pose()
         palm = s.robot.palm_pos
         if q < self.wrap_q:
@@ -126,19 +99,14 @@ class FeedbackLidSolver(LidSolver):
             return a
         grasp = lid @ self.wrap_pose(press=self.PRESS)
         err, curl = float(np.linalg.norm(grasp.p - palm)), self.curl(s)
-        if err < self.HOLD and curl > self.CURLED:  # ride: sweep the lid one way until it passes its target
+        if err < self.HOLD and curl > self.CURLED:  # ride the grasp to the target
             self.region = "ride"
-            down = s.robot.qpos[6 + self.FLAG_JOINT] > self._flag_threshold  # the thumb's flag, read
-            if down and q < self.SWEEP_LOW or not down and q > s.obj.joint_upper - 0.05:
-                down = not down  # the end of a sweep: turn back (the flag follows within a few steps)
-            q_goal = q - self.RIDE_LEAD if down else q + self.RIDE_LEAD
-            a, _, _ = self.action(s, self.frame.pose(q_goal) @ self.wrap_pose(), self._flagged(self.wrap_shape, down),
-                                  speed=0.5)
+            q_goal = q + np.clip(1.5 * (target - q), -0.25, 0.25)
+            a, _, _ = self.action(s, self.frame.pose(q_goal) @ self.wrap_pose(), self.wrap_shape, speed=0.5)
             return a
-        down = q > self.SWEEP_SPLIT  # before the grasp holds, the flag follows the lid
         if err < self.CLOSE_AT or (err < self.HOLD and curl > self.CURLING):  # curl the fingers over the edge
             self.region = "close"
-            a, _, _ = self.action(s, grasp, self._flagged(self.wrap_shape, down))
+            a, _, _ = self.action(s, grasp, self.wrap_shape)
             return a
         self.region = "wrap"
         # From the lifting pose straight down off the inner face first (a thumb dragged up past the
@@ -148,6 +116,6 @@ class FeedbackLidSolver(LidSolver):
         goal, segment = pursue(path, palm, self.LOOKAHEAD)
         # Hand and thumb keep their lifting pose until the thumb is clear: turning the hand or swinging
         # the thumb aside under the lid would fling it open.
-        rotation, hand = (self.R_lift, self.lift_shape) if segment == 0 else (grasp.R, self._flagged(self.wrap_open, down))
+        rotation, hand = (self.R_lift, self.lift_shape) if segment == 0 else (grasp.R, self.wrap_open)
         a, _, _ = self.action(s, Pose(goal, rotation), hand, speed=1.0 if err > 0.05 else 0.5)
         return a

@@ -16,13 +16,17 @@ At every step the scripted expert also labels the student's state (it does not a
 ``arm_error`` / ``hand_error``: the mean absolute difference between the student's and the
 expert's action on the 6 arm and the 16 hand dimensions (action units), the compounding-error
 signal of DAgger. ``stalled_frac`` is the fraction of failed episodes' last 100 steps in which
-the palm moved less than 2 mm per control step (a student stuck at a fixed point).
+the palm moved less than 2 mm per control step (a student stuck at a fixed point), and
+``stalled_by_region`` splits those stalled steps by the rule the expert's law would apply there
+(``FeedbackLidSolver.region`` on laptops and toilets: approach, lift, wrap, close, ride; the phase
+of the other experts), as fractions of all stalled steps: where in the task the students stop.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +63,7 @@ def run_student(run: Path, split: str, sigma: float, episodes_per_object: int, s
 
     def act(obs):  # the expert labels the state the student acts on (it reads the env, so before the step)
         trace["label"] = expert(obs)
+        trace["region"][-1].append(getattr(expert.solver, "region", expert.solver.phase))
         return student(obs)
 
     act.reset = student.reset  # the expert restarts by itself at step 0 (ScriptedPolicy)
@@ -66,12 +71,12 @@ def run_student(run: Path, split: str, sigma: float, episodes_per_object: int, s
     if fast_mode():
         names = names[:1]
     episodes = [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]
-    trace: dict = {"arm": [], "hand": [], "palm": []}
+    trace: dict = {"arm": [], "hand": [], "palm": [], "region": []}
 
     def on_reset(obs, info):
         trace["palm"].append([obs["state"][28:31].copy()])
-        trace["arm"].append([])
-        trace["hand"].append([])
+        for key in ("arm", "hand", "region"):
+            trace[key].append([])
 
     def on_step(obs, action, reward, next_obs, info, t):
         label = trace["label"]  # the expert's action at the student's state (the expert does not act)
@@ -83,18 +88,21 @@ def run_student(run: Path, split: str, sigma: float, episodes_per_object: int, s
     results = run_episodes(act, env, episodes, on_step=on_step, on_reset=on_reset)
     env.close()
     counts = {c: 0 for c in CLASSES}
-    stalled = []
-    for ep, palm in zip(results, trace["palm"]):
+    stalled, stalled_regions = [], Counter()
+    for ep, palm, regions in zip(results, trace["palm"], trace["region"]):
         counts[outcome(ep)] += 1
         if not ep["success"]:
-            moves = np.linalg.norm(np.diff(np.asarray(palm), axis=0), axis=1)[-100:]
-            stalled.append(float(np.mean(moves < STALL_M)))
+            still = np.linalg.norm(np.diff(np.asarray(palm), axis=0), axis=1)[-100:] < STALL_M  # step t moved the palm
+            stalled.append(float(np.mean(still)))
+            stalled_regions.update(r for r, s in zip(regions[-100:], still) if s)
+    n_stalled = sum(stalled_regions.values())
     n = len(results)
     return {"run": str(run), "task": cfg.task, "split": split, "sigma": sigma, "episodes": n,
             "success_rate": counts["success"] / n, **{f"{c}_frac": counts[c] / n for c in CLASSES[1:]},
             "arm_error": float(np.mean([e for ep in trace["arm"] for e in ep])),
             "hand_error": float(np.mean([e for ep in trace["hand"] for e in ep])),
             "stalled_frac": float(np.mean(stalled)) if stalled else 0.0,
+            "stalled_by_region": {r: c / n_stalled for r, c in sorted(stalled_regions.items())},
             "wall_time_s": round(time.perf_counter() - start, 1)}
 
 
@@ -116,7 +124,8 @@ def main(argv=None) -> dict:
                 r = rows[-1]
                 print(f"{run.name} {split:6s} sigma {sigma:.2f}: success {r['success_rate']:.2f}, no contact "
                       f"{r['no_contact_frac']:.2f}, touched {r['touched_frac']:.2f}, grasped {r['grasped_frac']:.2f}, "
-                      f"arm error {r['arm_error']:.3f}, hand error {r['hand_error']:.3f}, stalled {r['stalled_frac']:.2f}")
+                      f"arm error {r['arm_error']:.3f}, hand error {r['hand_error']:.3f}, stalled {r['stalled_frac']:.2f} "
+                      f"({', '.join(f'{k} {v:.2f}' for k, v in r['stalled_by_region'].items())})")
     result = {"rows": rows, "episodes_per_object": args.episodes_per_object, "seed": args.seed,
               "command": command_line("benchmarks/student_failures.py", argv), "machine": machine_info()}
     write_json(args.json, result)

@@ -609,6 +609,9 @@ def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch, load_benchmark)
         total = row["success_rate"] + row["no_contact_frac"] + row["touched_frac"] + row["grasped_frac"]
         assert row["episodes"] == 2 and total == pytest.approx(1.0)
         assert np.isfinite(row["arm_error"]) and row["arm_error"] >= 0 and 0 <= row["stalled_frac"] <= 1
+        by_region = row["stalled_by_region"]  # fractions of the stalled steps, named by the expert's rules
+        assert set(by_region) <= {"approach", "lift", "wrap", "close", "ride"}
+        assert sum(by_region.values()) == pytest.approx(1.0) if by_region else row["stalled_frac"] == 0.0
     assert out["rows"][0]["arm_error"] != out["rows"][1]["arm_error"]
 
 

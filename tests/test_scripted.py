@@ -151,40 +151,6 @@ def test_laptop_expert_is_memoryless():
         env.close()
 
 
-def test_the_lid_expert_holds_its_wrap_in_a_hand_joint():
-    """Once the wrap has spread the index finger (read from the joint angles), a lid angle under ``wrap_q``
-    no longer sends the expert back to the lift, unless the lid fell below ``REGRASP_BELOW``; with the
-    finger not spread, the lid angle alone decides, as before."""
-    import dataclasses
-
-    import numpy as np
-
-    env = make("laptop", object_names=["laptop_11cbb00f39"], num_points=32)
-    try:
-        policy, u = ScriptedPolicy(env), env.unwrapped
-        obs, _ = env.reset(seed=0)
-        for _ in range(250):
-            action = policy(obs)
-            solver, s = policy.solver, u._state
-            if solver.region == "wrap" and s.robot.qpos[6 + solver.WRAP_FLAG_JOINT] > solver._wrap_threshold:
-                break
-            obs, *_ = env.step(action)
-        else:
-            raise AssertionError("the expert never wrapped with the index spread")
-        assert solver._wrap_flag_works
-        sunk = dataclasses.replace(s, q=solver.wrap_q - 0.1)
-        solver.step(sunk)
-        assert solver.region in ("wrap", "close")
-        solver.step(dataclasses.replace(s, q=solver.REGRASP_BELOW - 0.1))
-        assert solver.region in ("approach", "lift")
-        qpos = s.robot.qpos.copy()
-        qpos[6 + solver.WRAP_FLAG_JOINT] = 0.0  # the finger not spread: the lid angle decides
-        solver.step(dataclasses.replace(sunk, robot=dataclasses.replace(s.robot, qpos=qpos)))
-        assert solver.region in ("approach", "lift")
-    finally:
-        env.close()
-
-
 def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/exploration_noise.py in fast mode: one row per split and noise level, with the
     settings it ran; noise-free, the expert solves its first object."""

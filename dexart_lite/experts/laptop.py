@@ -7,7 +7,6 @@ import numpy as np
 from dexart_lite.experts.controller import hand_shape
 from dexart_lite.experts.geometry import Pose, pursue
 from dexart_lite.experts.lid import LidSolver
-from dexart_lite.robot import synergy_action, synergy_targets
 
 
 class FeedbackLidSolver(LidSolver):
@@ -57,8 +56,6 @@ class FeedbackLidSolver(LidSolver):
     # at the laptop's 0.25 they fly past the wrap and the grasp misses them more often (seen toilets,
     # 3 episodes each: 0.90 at 0.25, 0.94 at 0.15).
     LIFT_LEAD = {"laptop": 0.25, "toilet": 0.15}
-    WRAP_FLAG_JOINT, WRAP_FLAG = 0, 0.2  # index abduction (rad) while wrapping
-    REGRASP_BELOW = 0.6  # rad: a lid fallen below this ends a wrap
 
     def __init__(self, env):
         super().__init__(env)
@@ -75,22 +72,8 @@ class FeedbackLidSolver(LidSolver):
         # wherever the knuckles end up past the edge, and a joint target at its limit is one that
         # action noise can only push one way (the env clips it).
         self.wrap_shape = hand_shape(finger=(0.0, *self.HOOK), thumb=self.THUMB_ASIDE)
-        # The wrap's hand shapes spread the index finger (WRAP_FLAG_JOINT): from the joint angles the rule
-        # knows the wrap has begun, and a lid that sinks back under ``wrap_q`` does not turn it back into
-        # the lift (only a lid that falls below REGRASP_BELOW does). Not on the synergy hand, which has no
-        # abduction: there the lid angle alone decides, as it did before.
-        self.wrap_lift_shape, self.wrap_open, self.wrap_shape = (self._spread(h) for h in
-                                                                 (self.lift_shape, self.wrap_open, self.wrap_shape))
-        executed = (lambda h: synergy_targets(synergy_action(h))) if env.hand_mode == "synergy" else (lambda h: h)
-        up, down = (executed(h)[self.WRAP_FLAG_JOINT] for h in (self.lift_shape, self.wrap_lift_shape))
-        self._wrap_flag_works, self._wrap_threshold = down - up > 0.5 * self.WRAP_FLAG, 0.5 * (up + down)
         self._flex = np.r_[1:4, 5:8, 9:12]  # MCP, PIP, DIP of index, middle, ring among the 16 hand joints
         self._open, self._curl = (float(np.mean(shape[self._flex])) for shape in (self.wrap_open, self.wrap_shape))
-
-    def _spread(self, shape: np.ndarray) -> np.ndarray:
-        shape = shape.copy()
-        shape[self.WRAP_FLAG_JOINT] = self.WRAP_FLAG
-        return shape
 
     def curl(self, s) -> float:
         """The fingers' curl, 0 open to 1 closed (mean flexion of index, middle and ring)."""
@@ -100,8 +83,7 @@ class FeedbackLidSolver(LidSolver):
         q, target = s.q, s.obj.joint_target
         lid = self.frame.pose()
         palm = s.robot.palm_pos
-        flagged = self._wrap_flag_works and s.robot.qpos[6 + self.WRAP_FLAG_JOINT] > self._wrap_threshold
-        if q < self.wrap_q and not (flagged and q > self.REGRASP_BELOW):
+        if q < self.wrap_q:
             arc = [self.thumb_pose(self.frame.pose(q + d)).p for d in np.linspace(0.0, self.LEAD, 5)]
             if min(np.linalg.norm(p - palm) for p in arc) < self.NEAR:  # lift: the lid turns up on the thumb
                 self.region = "lift"
@@ -134,6 +116,6 @@ class FeedbackLidSolver(LidSolver):
         goal, segment = pursue(path, palm, self.LOOKAHEAD)
         # Hand and thumb keep their lifting pose until the thumb is clear: turning the hand or swinging
         # the thumb aside under the lid would fling it open.
-        rotation, hand = (self.R_lift, self.wrap_lift_shape) if segment == 0 else (grasp.R, self.wrap_open)
+        rotation, hand = (self.R_lift, self.lift_shape) if segment == 0 else (grasp.R, self.wrap_open)
         a, _, _ = self.action(s, Pose(goal, rotation), hand, speed=1.0 if err > 0.05 else 0.5)
         return a

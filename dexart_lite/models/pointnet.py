@@ -70,9 +70,8 @@ class PointNetEncoder(nn.Module):
         per-point pass runs without autograd, only to find the winners, and autograd sees a
         recomputation of the winning points alone, each once (one point often wins many channels:
         ~26 distinct winners of 256 channels per cloud at initialisation, ~45 in a trained laptop
-        student), then the last layer's
-        channel f on channel f's winner (measured in benchmarks/bench_training.py; the PPO update
-        is the CPU bottleneck).
+        student), then the last layer's channel f on channel f's winner (measured in
+        benchmarks/bench_training.py; the PPO update is the CPU bottleneck).
         """
         c = self.in_channels
         if points.shape[-1] != c or points.dim() < 2:

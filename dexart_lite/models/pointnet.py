@@ -83,9 +83,13 @@ class PointNetEncoder(nn.Module):
             return pooled.reshape(*lead, self.feature_dim)
         with torch.no_grad():
             winner = torch.cat([self.mlp(chunk).max(dim=-2).indices for chunk in flat.split(CHUNK)])  # (B, F)
-        # the distinct winning points of the whole batch, as indices into the (B * N) points
+        # the distinct winning points of the whole batch, as indices into the (B * N) points (a mask
+        # and a running count instead of torch.unique, whose sort costs more than it saves)
         index = winner + n * torch.arange(len(flat), device=winner.device).unsqueeze(1)  # (B, F)
-        distinct, channel_point = torch.unique(index, return_inverse=True)  # (M,), (B, F) into distinct
+        wins = torch.zeros(flat.shape[0] * n, dtype=torch.bool, device=winner.device)
+        wins[index.reshape(-1)] = True
+        distinct = wins.nonzero().squeeze(1)  # (M,) ascending
+        channel_point = (torch.cumsum(wins, 0) - 1)[index]  # (B, F): channel f's winner's place in distinct
         hidden = self.mlp[:-1](flat.reshape(-1, c)[distinct])  # (M, H): the layers before the last one
         hidden = hidden[channel_point]  # (B, F, H): at channel f's winning point
         last = self.mlp[-1]

@@ -14,7 +14,8 @@ Measured side by side in one run:
   Start-up is excluded (every variant is built and warmed up first); then the variants take turns,
   ``--rounds`` times, and the medians are reported, so a busy machine slows them all alike.
   ``collector_vs_single_loop`` and ``collector_vs_parallel_loop`` compare ``collector_2`` with the
-  plain loops (targets >= 1.6 and >= 0.9).
+  plain loops (targets >= 1.6 and >= 0.9). Every variant acts with ``Acting`` (as ``train``);
+* one action on one observation: the actor-critic as torchrl modules and as ``Acting`` (``policy_call_ms``);
 * the PPO update: one Adam step of ``ClipPPOLoss`` on a minibatch of 500 clouds of 608 points, per
   encoder size, with the max-pool backward of ``PointNetEncoder`` (winners only) and, for
   comparison, the plain dense max-pool backward (taking turns, medians); reported per minibatch,
@@ -50,7 +51,7 @@ from tensordict import TensorDict
 
 import dexart_lite
 from dexart_lite.envs import make as make_gym_env
-from dexart_lite.models.actor_critic import encoder_of, make_actor_critic
+from dexart_lite.models.actor_critic import Acting, encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl import ppo
 from dexart_lite.rl.env import make_env, torch_threads
@@ -82,7 +83,7 @@ class PlainLoop:
 
     def __init__(self, task: str, seed: int):
         self.env = make_gym_env(task, point_noise=True, camera_noise=True)
-        self.actor_critic = make_actor_critic(self.env.observation_space["state"].shape[0])
+        self.policy = Acting(make_actor_critic(self.env.observation_space["state"].shape[0]))  # as the collectors
         self.obs, _ = self.env.reset(seed=seed)
         self.run(20)  # warm-up
 
@@ -91,7 +92,7 @@ class PlainLoop:
             td = TensorDict({"point_cloud": torch.as_tensor(self.obs["point_cloud"]),
                              "observation": torch.as_tensor(self.obs["state"])})
             with torch.no_grad():
-                action = self.actor_critic(td)["action"].numpy()
+                action = self.policy(td)["action"].numpy()
             self.obs, _, terminated, truncated, _ = self.env.step(action)
             if terminated or truncated:
                 self.obs, _ = self.env.reset()
@@ -174,6 +175,26 @@ def collection_fps(task: str, frames: int, rounds: int, frames_per_batch: int) -
         if hasattr(variant, "close"):
             variant.close()
     return {k: statistics.median(v) for k, v in fps.items()}
+
+
+def policy_call_ms(calls: int, rounds: int) -> dict[str, float]:
+    """Median ms per call on one observation (608 points, one thread, no autograd) of the small-encoder
+    actor-critic as torchrl modules (``actor_critic(td)``) and as ``Acting`` (what the collectors and
+    evaluation run; the same numbers), taking turns ``rounds`` times."""
+    actor_critic = make_actor_critic(32, 22, "small", normalize=True)
+    policies = {"actor_critic": actor_critic, "acting": Acting(actor_critic)}
+    obs = TensorDict({"point_cloud": torch.randn(POINTS, 3) * 0.3, "observation": torch.randn(32)})
+    times: dict[str, list[float]] = {k: [] for k in policies}
+    with torch.no_grad(), torch_threads(1):
+        for _ in range(rounds):
+            for name, policy in policies.items():
+                policy(obs.clone())  # warm-up
+                start = time.perf_counter()
+                for _ in range(calls):
+                    policy(obs.clone())
+                times[name].append((time.perf_counter() - start) / calls * 1e3)
+    ms = {k: statistics.median(v) for k, v in times.items()}
+    return {**ms, "acting_speedup": ms["actor_critic"] / ms["acting"]}
 
 
 # ------------------------------------------------------------------ update
@@ -280,6 +301,7 @@ def main(argv=None) -> dict:
 
     collector_batch = min(args.collector_batch, args.frames)
     fps = collection_fps(args.task, args.frames, args.rounds, collector_batch)
+    policy_ms = policy_call_ms(50 if fast_mode() else 500, args.rounds)
 
     update = update_costs(args.reps)
 
@@ -298,6 +320,7 @@ def main(argv=None) -> dict:
         "collection_fps": fps,
         "collector_vs_single_loop": fps["collector_2"] / fps["single_loop"],
         "collector_vs_parallel_loop": fps["collector_2"] / fps["parallel_loop"],
+        "policy_call_ms": policy_ms,
         "update": update,
         "iteration": iteration,
         "settings": {"points": POINTS, "minibatch": MINIBATCH, "torch_threads_learner": torch.get_num_threads(),
@@ -311,7 +334,9 @@ def main(argv=None) -> dict:
     for k, v in fps.items():
         print(f"| {k} | {v:.0f} |")
     print(f"\ncollector_vs_single_loop = {result['collector_vs_single_loop']:.2f} (target >= 1.6), "
-          f"collector_vs_parallel_loop = {result['collector_vs_parallel_loop']:.2f} (target >= 0.9)\n")
+          f"collector_vs_parallel_loop = {result['collector_vs_parallel_loop']:.2f} (target >= 0.9)")
+    print(f"one action (small encoder, 1 thread): actor_critic(td) {policy_ms['actor_critic']:.2f} ms, "
+          f"Acting {policy_ms['acting']:.2f} ms (x{policy_ms['acting_speedup']:.2f})\n")
     print("| encoder | minibatch of 500 (s) | per 10k frames, 1 epoch (s) | faithful update, 20k x 10 epochs (s) "
           "| dense max-pool minibatch (s) | speed-up |\n|---|---|---|---|---|---|")
     for k, u in update.items():

@@ -9,7 +9,7 @@ from torch import nn
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import ClipPPOLoss
 
-from dexart_lite.models.actor_critic import action_log_std, encoder_of, make_actor_critic
+from dexart_lite.models.actor_critic import Acting, action_log_std, encoder_of, make_actor_critic, set_action_log_std
 from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_encoder, save_encoder
 
 SIZES = list(ENCODER_SIZES)
@@ -85,7 +85,12 @@ def test_winner_only_backward_equals_the_dense_max_pool(size):
     weight = torch.randn(70, 256)
     dense = enc.mlp(points).max(dim=-2).values
     grads_dense = torch.autograd.grad((dense * weight).sum(), [points, *enc.parameters()])
+    rows = []  # points the first layer sees with autograd on: each distinct winner once
+    hook = enc.mlp[0].register_forward_hook(lambda m, i, o: rows.append(i[0].shape[0]) if o.requires_grad else None)
     fast = enc(points)
+    hook.remove()
+    winners = {(b, p) for b, row in enumerate(enc.mlp(points).max(dim=-2).indices.tolist()) for p in row}
+    assert rows == [len(winners)] and len(winners) < 70 * 256
     grads_fast = torch.autograd.grad((fast * weight).sum(), [points, *enc.parameters()])
 
     def rel(a, b):
@@ -183,6 +188,30 @@ def test_deterministic_action_is_the_mean_and_random_action_is_sampled():
     assert torch.equal(out["action"], out["loc"])
     out = policy(obs.clone())  # default: sample
     assert not torch.allclose(out["action"], out["loc"])
+
+
+@pytest.mark.parametrize("encoder, normalize", [("small", True), ("none", False)])
+def test_acting_gives_the_actor_critics_numbers_on_its_weights(encoder, normalize):
+    """``Acting`` (collectors, evaluation) = ``actor_critic(td)``: the same loc, scale, value and log-prob, the
+    same sampled action from the same torch seed, the mean under DETERMINISTIC; a weight change shows."""
+    ac = make_actor_critic(32, 22, encoder, normalize=normalize)
+    set_action_log_std(ac, -0.7)
+    acting, obs = Acting(ac), _obs(5)
+    if encoder == "none":
+        del obs["point_cloud"]
+    with torch.no_grad():
+        for mode in (None, ExplorationType.RANDOM, ExplorationType.DETERMINISTIC):
+            outs = []
+            for module in (ac, acting):
+                torch.manual_seed(3)
+                with set_exploration_type(mode) if mode else torch.no_grad():
+                    outs.append(module(obs.clone()))
+            ref, fast = outs
+            for key in ("loc", "scale", "action", "action_log_prob", "state_value"):
+                assert fast[key].shape == ref[key].shape and torch.allclose(fast[key], ref[key], atol=1e-6), (mode, key)
+            assert torch.equal(fast["action"], fast["loc"]) == (mode == ExplorationType.DETERMINISTIC)
+        ac.get_value_head().module[-1].bias.add_(1.0)  # shared, not copied
+        assert torch.allclose(acting(obs.clone())["state_value"], ref["state_value"] + 1.0, atol=1e-5)
 
 
 def test_action_std_starts_at_exp_init_log_std():

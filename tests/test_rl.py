@@ -22,7 +22,7 @@ from torchrl.objectives.value import GAE
 
 from dexart_lite import cli
 from dexart_lite import objects as objects_lib
-from dexart_lite.models.actor_critic import encoder_of, make_actor_critic, trunk_of
+from dexart_lite.models.actor_critic import encoder_of, make_actor_critic, set_action_log_std, trunk_of
 from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
@@ -106,6 +106,30 @@ def test_values_from_the_rollout_give_the_same_advantages_as_gae_with_a_value_ne
         GAE(gamma=0.99, lmbda=0.95, value_network=None)(data)
     assert torch.allclose(data["advantage"], reference["advantage"], atol=1e-5)
     assert torch.allclose(data["value_target"], reference["value_target"], atol=1e-5)
+
+
+def test_the_collectors_workers_act_with_the_learners_weights_after_each_update():
+    """``make_collector`` hands the workers ``Acting(actor_critic)``: after the learner's weights change
+    in place and ``update_policy_weights_()``, the 2 worker processes act with the new ones."""
+    cfg = dataclasses.replace(ppo.PPOConfig(), task="laptop", workers=2, frames_per_batch=40)
+    env_fn = partial(make_env, "laptop", num_points=32, max_episode_steps=20)
+    actor_critic = make_actor_critic(32, 22, "small")
+    collector = ppo.make_collector(cfg, [partial(env_fn, seed=i) for i in range(2)], actor_critic, total_frames=-1)
+    try:
+        batches = iter(collector)
+        before = next(batches)
+        with torch.no_grad():  # the learner's step, in place: every action 0.5, std e^-10
+            action_layer = actor_critic.get_policy_head().module[0].module[0][-1]
+            action_layer.weight.zero_()
+            action_layer.bias.fill_(0.5)
+            set_action_log_std(actor_critic, -10.0)
+        collector.update_policy_weights_()
+        after = next(batches)
+    finally:
+        collector.shutdown()
+    assert before["action"].abs().mean() > 0.5  # std 1 before
+    assert after.shape == (2, 20) and torch.allclose(after["action"], torch.full_like(after["action"], 0.5), atol=1e-3)
+    assert torch.allclose(after["loc"], torch.full_like(after["loc"], 0.5))
 
 
 # ------------------------------------------------------------------ config and CLI
@@ -537,6 +561,9 @@ def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commi
     assert row["iteration_fps_subprocess"] > 0 and row["ref_iteration_fps"] > 0
     assert row["iteration_vs_ref"] == pytest.approx(row["iteration_fps_subprocess"] / row["ref_iteration_fps"])
     assert row["ref"] == "HEAD" and row["ref_frames_per_batch"] == 500
+    calls = bench.policy_call_ms(calls=2, rounds=1)  # the one-action timing of both policy forms
+    assert set(calls) == {"actor_critic", "acting", "acting_speedup"} and calls["acting"] > 0
+    assert calls["acting_speedup"] == pytest.approx(calls["actor_critic"] / calls["acting"])
 
 
 def test_train_help_lists_every_preset_and_option_with_its_faithful_value(capsys):

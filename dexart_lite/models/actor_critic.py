@@ -22,7 +22,8 @@ from __future__ import annotations
 import math
 
 import torch
-from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule
+from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule, TensorDictModuleBase
+from tensordict.nn.probabilistic import interaction_type
 from torch import nn
 from torchrl.data import Bounded
 from torchrl.envs.utils import ExplorationType
@@ -154,6 +155,45 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
                                      default_interaction_type=ExplorationType.RANDOM)  # eval: set DETERMINISTIC
     value_head = ValueOperator(value_net, in_keys=[HIDDEN_KEY])  # writes "state_value" (..., 1)
     return ActorValueOperator(trunk_module, policy_head, value_head)
+
+
+class Acting(TensorDictModuleBase):
+    """``actor_critic(td)`` for acting, on the same modules (the weights are shared, not copied).
+
+    Writes what the whole actor-critic writes, less the trunk's ``hidden``: ``loc``, ``scale``,
+    ``action``, ``action_log_prob`` and ``state_value``, with the same numbers (a test checks them,
+    the random action included). tensordict's generic modules cost more than the small network
+    they wrap: one actor-critic call on one observation takes ~1.0 ms, of which the trunk 0.5, the
+    rest the five modules' key plumbing (each output write even searches ``sys.path`` for pandas);
+    in a collector that overhead is ~10 % of a step (``benchmarks/bench_training.py``). This class
+    goes to the collectors and acts in evaluation; the loss keeps the torchrl modules.
+
+    The action follows tensordict's interaction type as ``ProbabilisticActor`` does: the mean under
+    ``set_exploration_type(DETERMINISTIC / MODE / MEAN)``, otherwise (RANDOM, the default of the
+    actor) a sample ``loc + scale * eps`` drawn as ``Normal.rsample`` draws it.
+    """
+
+    def __init__(self, actor_critic: ActorValueOperator):
+        super().__init__()
+        trunk_module, policy_head, value_head = actor_critic.module
+        self.trunk = trunk_module.module
+        self.loc_scale = policy_head.module[0].module  # policy MLP, then the state-independent scale
+        self.value_net = value_head.module
+        self.in_keys = list(trunk_module.in_keys)
+        self.out_keys = ["loc", "scale", "action", "action_log_prob", "state_value"]
+
+    def forward(self, tensordict):
+        hidden = self.trunk(*(tensordict.get(key) for key in self.in_keys))  # (..., 320)
+        loc, scale = self.loc_scale(hidden)  # (..., action_dim) each
+        if interaction_type() in (ExplorationType.DETERMINISTIC, ExplorationType.MODE, ExplorationType.MEAN):
+            action = loc
+        else:
+            action = loc + torch.empty_like(loc).normal_() * scale  # Normal.rsample's draw
+        # log N(action; loc, scale) summed over the action dimensions (IndependentNormal.log_prob)
+        log_prob = (-((action - loc) ** 2) / (2 * scale**2) - scale.log() - 0.5 * math.log(2 * math.pi)).sum(-1)
+        for key, value in zip(self.out_keys, (loc, scale, action, log_prob, self.value_net(hidden))):
+            tensordict.set(key, value)
+        return tensordict
 
 
 def input_key(encoder: str) -> str:

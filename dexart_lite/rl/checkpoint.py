@@ -16,7 +16,7 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
-from dexart_lite.models.actor_critic import HEAD_HIDDEN, IMAGE_KEY, POINTS_KEY, STATE_KEY, make_actor_critic
+from dexart_lite.models.actor_critic import HEAD_HIDDEN, IMAGE_KEY, POINTS_KEY, STATE_KEY, Acting, make_actor_critic
 
 FILE_FORMAT = "dexart_lite.ppo"
 FILE_VERSION = 1
@@ -94,7 +94,7 @@ def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "check
 
 def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.ndarray]:
     """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1]."""
-    policy = actor_critic.get_policy_operator()
+    policy = Acting(actor_critic)  # the actor-critic's outputs without tensordict's per-module overhead
 
     def act(obs: dict) -> np.ndarray:
         td = TensorDict({STATE_KEY: torch.as_tensor(obs["state"])}, [])

@@ -40,8 +40,8 @@ from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import load_demos
-from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, action_log_std, encoder_of, make_actor_critic,
-                                             set_action_log_std, trunk_of)
+from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, Acting, action_log_std, encoder_of,
+                                             make_actor_critic, set_action_log_std, trunk_of)
 from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_encoder
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
@@ -253,10 +253,13 @@ def validate(cfg: PPOConfig) -> None:
                            "(or pip install 'dexart_lite[distributed]')")
 
 
-def make_collector(cfg: PPOConfig, env_fns: list, policy, total_frames: int):
-    """The collector of ``cfg.backend``; worker ``i`` builds its own env with ``env_fns[i]``."""
+def make_collector(cfg: PPOConfig, env_fns: list, actor_critic, total_frames: int):
+    """The collector of ``cfg.backend``; worker ``i`` builds its own env with ``env_fns[i]``. It acts with
+    ``Acting(actor_critic)``: the whole actor-critic's outputs (action and value in one trunk pass) on
+    the same weights, without tensordict's per-module overhead."""
     from torchrl.collectors import Collector, MultiSyncCollector
 
+    policy = Acting(actor_critic)
     common = dict(frames_per_batch=cfg.frames_per_batch, total_frames=total_frames)
     if cfg.backend == "process" and cfg.workers <= 1:
         return Collector(env_fns[0], policy, **common)
@@ -595,7 +598,7 @@ def train(cfg: PPOConfig) -> dict:
     learner = build_learner(cfg, env_fn)
     frames_done, batches, history = restore(learner, cfg, ckpt_path) if cfg.resume else (0, 0, [])
 
-    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass).
+    # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass, ``Acting``).
     # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed
     # the envs because DistributedCollector.set_seed fails in torchrl 0.14.1.
     collector = None

@@ -162,11 +162,11 @@ class Acting(TensorDictModuleBase):
 
     Writes what the whole actor-critic writes, less the trunk's ``hidden``: ``loc``, ``scale``,
     ``action``, ``action_log_prob`` and ``state_value``, with the same numbers (a test checks them,
-    the random action included). tensordict's generic modules cost more than the small network
-    they wrap: one actor-critic call on one observation takes ~1.0 ms, of which the trunk 0.5, the
-    rest the five modules' key plumbing (each output write even searches ``sys.path`` for pandas);
-    in a collector that overhead is ~10 % of a step (``benchmarks/bench_training.py``). This class
-    goes to the collectors and acts in evaluation; the loss keeps the torchrl modules.
+    the random action included). tensordict's generic modules cost about as much as the small
+    network they wrap: one action on one observation, 1 thread, takes 1.27 ms as ``actor_critic(td)``
+    and 0.77 ms here (``benchmarks/bench_training.py``, ``policy_call_ms``; each module output write
+    even searches ``sys.path`` for pandas). This class goes to the collectors and acts in evaluation
+    and DAgger; the loss keeps the torchrl modules.
 
     The action follows tensordict's interaction type as ``ProbabilisticActor`` does: the mean under
     ``set_exploration_type(DETERMINISTIC / MODE / MEAN)``, otherwise (RANDOM, the default of the

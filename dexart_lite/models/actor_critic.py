@@ -189,8 +189,8 @@ class Acting(TensorDictModuleBase):
             action = loc
         else:
             action = loc + torch.empty_like(loc).normal_() * scale  # Normal.rsample's draw
-        # log N(action; loc, scale) summed over the action dimensions (IndependentNormal.log_prob)
-        log_prob = (-((action - loc) ** 2) / (2 * scale**2) - scale.log() - 0.5 * math.log(2 * math.pi)).sum(-1)
+        # summed over the action dimensions, as IndependentNormal.log_prob (no argument checks: hot path)
+        log_prob = torch.distributions.Normal(loc, scale, validate_args=False).log_prob(action).sum(-1)
         for key, value in zip(self.out_keys, (loc, scale, action, log_prob, self.value_net(hidden))):
             tensordict.set(key, value)
         return tensordict

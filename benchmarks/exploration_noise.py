@@ -15,8 +15,8 @@ The same curve says how imitable an expert is: a student's actions are the exper
 so an expert whose success survives noise can be copied by an imperfect student (the distillation
 issue's bar: >= 0.9 at std 0.3 and >= 0.7 at 0.5 on both splits).
 
-Writes the JSON (one row per split and ``sigma``) and a PNG next to it (success and mean return
-against ``sigma``, one line per split).
+Writes the JSON (one row per split, ``sigma`` and seed; ``mean_over_seeds``: their mean) and a PNG
+next to it (success and mean return against ``sigma``, one line per split, means over the seeds).
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+
+import numpy as np
 
 from dexart_lite.objects import list_objects
 from dexart_lite.experts import SOLVERS
@@ -39,7 +41,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--splits", nargs="+", default=["seen"], help="seen, unseen, seen_half")
     parser.add_argument("--episodes-per-object", type=int, default=2)
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(SIGMAS), help="noise std per action dim")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", "--seed", dest="seeds", type=int, nargs="+", default=[0],
+                        help="one solve per seed (its own reset seeds and noise draws); the table adds their mean")
     parser.add_argument("--json", type=Path, help="write the results here (and the PNG next to it)")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -49,26 +52,45 @@ def main(argv=None) -> dict:
     for split in args.splits:
         object_names = [list_objects(args.task, split)[0].name] if fast_mode() else None
         for sigma in args.sigmas:
-            start = time.perf_counter()
-            res = solve(args.task, split, args.episodes_per_object, args.seed, object_names=object_names,
-                        progress=not fast_mode(), action_noise=sigma)
-            res["wall_time_s"] = time.perf_counter() - start
-            rows.append(res)
+            for seed in args.seeds:
+                start = time.perf_counter()
+                res = solve(args.task, split, args.episodes_per_object, seed, object_names=object_names,
+                            progress=not fast_mode(), action_noise=sigma)
+                res["wall_time_s"] = time.perf_counter() - start
+                rows.append(res)
+    summary = mean_over_seeds(rows)
 
-    print(f"| split | noise std | success ({args.task}) | mean max stage | steps in stage 1 / 2 / 3 | mean return |")
-    print("|---|---|---|---|---|---|")
+    print(f"| split | noise std | seed | success ({args.task}) | mean max stage | steps in stage 1 / 2 / 3 | mean return |")
+    print("|---|---|---|---|---|---|---|")
     for r in rows:
         f = r["stage_fractions"]
-        print(f"| {r['split']} | {r['action_noise']:.1f} | {r['success_rate']:.2f} | {r['mean_max_stage']:.2f} | "
+        print(f"| {r['split']} | {r['action_noise']:g} | {r['seed']} | {r['success_rate']:.2f} | {r['mean_max_stage']:.2f} | "
               f"{f['stage1']:.2f} / {f['stage2']:.2f} / {f['stage3']:.2f} | {r['mean_return']:.1f} |")
+    if len(args.seeds) > 1:
+        for r in summary:
+            print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- {r['success_std']:.2f} "
+                  f"| {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
     result = {"task": args.task, "splits": args.splits, "episodes_per_object": args.episodes_per_object,
-              "seed": args.seed, "rows": rows, "command": command_line("benchmarks/exploration_noise.py", argv),
+              "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary, "command": command_line("benchmarks/exploration_noise.py", argv),
               "machine": machine_info(), "fast_mode": fast_mode()}
     if args.json:
         write_json(args.json, result)
-        plot(rows, args.json.with_suffix(".png"), f"{args.task}: scripted solver + Gaussian action noise")
+        plot(summary, args.json.with_suffix(".png"), f"{args.task}: scripted solver + Gaussian action noise")
         print(f"wrote {args.json} and {args.json.with_suffix('.png')}")
     return result
+
+
+def mean_over_seeds(rows: list[dict]) -> list[dict]:
+    """One row per split and ``sigma``: success (mean and std over the seeds), mean max stage and return."""
+    out = []
+    for key in dict.fromkeys((r["split"], r["action_noise"]) for r in rows):
+        mine = [r for r in rows if (r["split"], r["action_noise"]) == key]
+        rates = np.array([r["success_rate"] for r in mine])
+        out.append({"split": key[0], "action_noise": key[1], "seeds": [r["seed"] for r in mine],
+                    "success_rate": float(rates.mean()), "success_std": float(rates.std()),
+                    "mean_max_stage": float(np.mean([r["mean_max_stage"] for r in mine])),
+                    "mean_return": float(np.mean([r["mean_return"] for r in mine]))})
+    return out
 
 
 def plot(rows: list[dict], path: Path, title: str) -> None:

@@ -166,6 +166,21 @@ def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch, load_benchmark
     assert rows[0]["success_rate"] == 1.0
 
 
+def test_exploration_noise_benchmark_averages_its_seeds(monkeypatch, load_benchmark):
+    """With several seeds, one row per split, noise level and seed, and their mean and std per split and
+    noise level: the mean is over the seeds' own rows."""
+    import numpy as np
+
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("exploration_noise")
+    out = bench.main(["--task", "faucet", "--splits", "seen", "--seeds", "0", "1"])
+    assert [(r["action_noise"], r["seed"]) for r in out["rows"]] == [(0.0, 0), (0.0, 1), (1.0, 0), (1.0, 1)]
+    assert [(m["action_noise"], m["seeds"]) for m in out["mean_over_seeds"]] == [(0.0, [0, 1]), (1.0, [0, 1])]
+    for m, pair in zip(out["mean_over_seeds"], (out["rows"][:2], out["rows"][2:])):
+        rates = [r["success_rate"] for r in pair]
+        assert m["success_rate"] == np.mean(rates) and m["success_std"] == np.std(rates)
+
+
 def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a_smoke_run(
         tmp_path, monkeypatch, load_benchmark):
     """benchmarks/synergy_expert.py in fast mode: one row per task and split from a hand="synergy" env (whose

@@ -32,24 +32,13 @@ import time
 from pathlib import Path
 
 import dexart_lite
+from dexart_lite.envs.base import physics_setting
 from dexart_lite.experts.solve import solve
 from dexart_lite.rollout import step_rate
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
-CONTROL_DT = 0.04  # s: DexArt's control step (25 Hz), kept in every setting
 BASELINE = "50x10"  # the env's defaults: 50 solver iterations, 10 sub-steps of 4 ms
-
-
-def parse_setting(text: str) -> dict:
-    """``"20x10"`` -> the env keywords ``{"solver_iterations": 20, "frame_skip": 10, "dt": 0.004}``."""
-    iterations, sep, skip = text.partition("x")
-    try:
-        iterations, skip = int(iterations), int(skip)
-    except ValueError:
-        iterations = skip = 0
-    if not sep or iterations < 1 or skip < 1:
-        raise ValueError(f"a physics setting is ITERATIONSxFRAME_SKIP with both >= 1 (e.g. 20x10), got {text!r}")
-    return {"solver_iterations": iterations, "frame_skip": skip, "dt": CONTROL_DT / skip}
+parse_setting = physics_setting  # "20x10" -> env keywords (dexart_lite.envs.base)
 
 
 def speeds(tasks: list[str], settings: list[str], steps: int, rounds: int) -> dict:

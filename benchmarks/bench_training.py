@@ -51,6 +51,7 @@ from tensordict import TensorDict
 
 import dexart_lite
 from dexart_lite.envs import make as make_gym_env
+from dexart_lite.envs.base import physics_setting
 from dexart_lite.models.actor_critic import Acting, encoder_of, make_actor_critic
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl import ppo
@@ -251,11 +252,26 @@ def update_costs(reps: int) -> dict[str, dict[str, float]]:
     return update
 
 
-def training_iteration(task: str, batches: int) -> dict:
-    """``train`` with the cpu preset for ``batches`` batches (2 workers, no evaluation)."""
+class PhysicsPPOConfig(ppo.PPOConfig):
+    """A ``PPOConfig`` whose envs use other physics (``physics_setting`` keywords), for ``--physics`` only;
+    its fields (what ``train`` records) are the config's."""
+
+    def __init__(self, physics: dict, **fields):
+        super().__init__(**fields)
+        self.physics = physics
+
+    def env_kwargs(self) -> dict:
+        return {**super().env_kwargs(), **self.physics}
+
+
+def training_iteration(task: str, batches: int, physics: str | None = None) -> dict:
+    """``train`` with the cpu preset for ``batches`` batches (2 workers, no evaluation); ``physics``: a
+    setting such as ``"20x5"`` for every env of the run (default: the env's, ``"50x10"``)."""
     with tempfile.TemporaryDirectory() as out:
         cfg = ppo.preset("cpu", task=task, frames=batches * ppo.PRESETS["cpu"]["frames_per_batch"], out=out,
                          eval_episodes=0, progress=False)
+        if physics:
+            cfg = PhysicsPPOConfig(physics_setting(physics), **dataclasses.asdict(cfg))
         history = ppo.train(cfg)["history"][1:]  # the first batch includes the workers' start-up
     n = len(history) * cfg.frames_per_batch
     collect, update = sum(h["collect_s"] for h in history), sum(h["update_s"] for h in history)
@@ -281,6 +297,33 @@ def iteration_vs_ref(ref: str, task: str, batches: int, rounds: int,
             "iteration_vs_ref": this / other}
 
 
+def iteration_vs_physics(setting: str, task: str, batches: int, rounds: int) -> dict:
+    """The whole cpu-preset iteration with the env's physics and with ``setting``, alternately in this
+    process, ``rounds`` times each: medians of collection, update and iteration frames/s, and the ratio.
+    Learning settings are the same; only the envs' physics differs (its success contract:
+    ``benchmarks/bench_physics.py``)."""
+    runs: dict[str, list[dict]] = {"default": [], setting: []}
+    for _ in range(rounds):
+        runs["default"].append(training_iteration(task, batches))
+        runs[setting].append(training_iteration(task, batches, setting))
+    med = {key: {k: statistics.median(r[k] for r in rs) for k in ("collect_fps", "update_fps", "iteration_fps")}
+           for key, rs in runs.items()}
+    return {"setting": setting, "rounds": rounds, "default": med["default"], "with_setting": med[setting],
+            "iteration_vs_default": med[setting]["iteration_fps"] / med["default"]["iteration_fps"]}
+
+
+def physics_comparison(args) -> dict:
+    """``iteration_vs_physics`` for ``--physics``, printed as a table."""
+    out = iteration_vs_physics(args.physics, args.task, args.iteration_batches, args.ref_rounds)
+    print(f"| cpu-preset iteration, {args.task} (medians of {out['rounds']}) | collect | update | whole iteration |"
+          "\n|---|---|---|---|")
+    for name, key in (("physics 50x10 (default)", "default"), (f"physics {args.physics}", "with_setting")):
+        m = out[key]
+        print(f"| {name} | {m['collect_fps']:.0f} | {m['update_fps']:.0f} | {m['iteration_fps']:.0f} |")
+    print(f"whole iteration x{out['iteration_vs_default']:.2f} with physics {args.physics}")
+    return out
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
@@ -292,12 +335,27 @@ def main(argv=None) -> dict:
     parser.add_argument("--iteration-batches", type=int, default=3, help="cpu-preset batches (first one not timed)")
     parser.add_argument("--ref", help="an earlier commit whose whole cpu-preset iteration is measured side by side")
     parser.add_argument("--ref-rounds", type=int, default=2, help="iterations per checkout with --ref (median)")
+    parser.add_argument("--physics", help="also measure the cpu-preset iteration with this physics setting "
+                        "(ITERATIONSxFRAME_SKIP, e.g. 20x5) against the default, alternately (--ref-rounds each)")
+    parser.add_argument("--only-physics", action="store_true", help="with --physics: measure nothing else")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
+    if args.physics:
+        physics_setting(args.physics)  # a bad setting fails now, not after the other measurements
+    elif args.only_physics:
+        parser.error("--only-physics needs --physics")
     if fast_mode():
         args.frames, args.rounds, args.reps, args.iteration_batches, args.ref_rounds = 200, 1, 1, 2, 1
     torch.set_num_threads(os.cpu_count())
     load_before = os.getloadavg()[0]
+    if args.only_physics:
+        result = {"task": args.task, "iteration_vs_physics": physics_comparison(args),
+                  "load_average_1min": {"before": load_before, "after": os.getloadavg()[0]},
+                  "command": command_line("benchmarks/bench_training.py", argv),
+                  "machine": machine_info(), "torch": torch.__version__}
+        if args.json:
+            write_json(args.json, result)
+        return result
 
     collector_batch = min(args.collector_batch, args.frames)
     fps = collection_fps(args.task, args.frames, args.rounds, collector_batch)
@@ -314,6 +372,7 @@ def main(argv=None) -> dict:
         "hours_per_1M_frames": 1e6 / (20_000 / (faithful_collect + faithful_update)) / 3600}
     if args.ref:
         iteration.update(iteration_vs_ref(args.ref, args.task, args.iteration_batches, args.ref_rounds))
+    physics = physics_comparison(args) if args.physics else None
 
     result = {
         "task": args.task,
@@ -323,6 +382,7 @@ def main(argv=None) -> dict:
         "policy_call_ms": policy_ms,
         "update": update,
         "iteration": iteration,
+        **({"iteration_vs_physics": physics} if physics else {}),
         "settings": {"points": POINTS, "minibatch": MINIBATCH, "torch_threads_learner": torch.get_num_threads(),
                      "collection_frames_per_round": args.frames, "rounds": args.rounds,
                      "collector_frames_per_batch": collector_batch},

@@ -566,6 +566,27 @@ def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commi
     assert calls["acting_speedup"] == pytest.approx(calls["actor_critic"] / calls["acting"])
 
 
+def test_the_training_benchmarks_physics_option_reaches_the_envs_and_nothing_else(load_benchmark):
+    """--physics 20x5: the cpu preset's learning settings unchanged, every env built from the config with 20
+    solver iterations and 5 sub-steps of 8 ms (the control step stays 40 ms); a bad setting is refused
+    before anything is measured."""
+    from dexart_lite.envs.base import physics_setting
+
+    bench = load_benchmark("bench_training")
+    cfg = ppo.preset("cpu", task="laptop")
+    fast = bench.PhysicsPPOConfig(physics_setting("20x5"), **dataclasses.asdict(cfg))
+    assert dataclasses.asdict(fast) == dataclasses.asdict(cfg)
+    assert fast.env_kwargs() == {**cfg.env_kwargs(), "solver_iterations": 20, "frame_skip": 5, "dt": 0.008}
+    env = make_env("laptop", **fast.env_kwargs())
+    try:
+        inner = env.base_env._env.unwrapped
+        assert inner.frame_skip == 5 and inner.control_dt == pytest.approx(0.04)
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="ITERATIONSxFRAME_SKIP"):
+        bench.main(["--physics", "20", "--only-physics"])
+
+
 def test_train_help_lists_every_preset_and_option_with_its_faithful_value(capsys):
     """`dexart-lite train --help`: every preset, and every PPOConfig field as a flag whose help ends with its
     DexArt (faithful preset) value, e.g. the fine-tuning guards that DexArt does not have."""

@@ -44,6 +44,22 @@ TABLE_RGBA, PEDESTAL_RGBA = (0.8, 0.75, 0.65, 1.0), (0.5, 0.5, 0.5, 1.0)
 VIEWER_SIZE = (320, 240)  # px, env.render()
 PRIVILEGED_STATE = 15  # entries the state-only observation appends (DexArtEnv.privileged_state)
 
+CONTROL_DT = 0.04  # s: one control step (DexArt's 25 Hz) = dt * frame_skip at the defaults (0.004 s x 10)
+
+
+def physics_setting(text: str) -> dict:
+    """``"20x10"`` (solver iterations x sub-steps per control step) -> the env keywords
+    ``{"solver_iterations": 20, "frame_skip": 10, "dt": 0.004}``; the control step stays ``CONTROL_DT``.
+    The defaults are ``"50x10"`` (``benchmarks/bench_physics.py`` checks cheaper ones)."""
+    iterations, sep, skip = text.partition("x")
+    try:
+        iterations, skip = int(iterations), int(skip)
+    except ValueError:
+        iterations = skip = 0
+    if not sep or iterations < 1 or skip < 1:
+        raise ValueError(f"a physics setting is ITERATIONSxFRAME_SKIP with both >= 1 (e.g. 20x10), got {text!r}")
+    return {"solver_iterations": iterations, "frame_skip": skip, "dt": CONTROL_DT / skip}
+
 
 @dataclass(frozen=True)
 class State:

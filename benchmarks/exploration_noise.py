@@ -60,18 +60,21 @@ def main(argv=None) -> dict:
                 rows.append(res)
     summary = mean_over_seeds(rows)
 
-    print(f"| split | noise std | seed | success ({args.task}) | mean max stage | steps in stage 1 / 2 / 3 | mean return |")
+    print(f"| split | noise std | seed | success ({args.task}) | mean max stage | steps in stage 1 / 2 / 3 "
+          "| mean return |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         f = r["stage_fractions"]
-        print(f"| {r['split']} | {r['action_noise']:g} | {r['seed']} | {r['success_rate']:.2f} | {r['mean_max_stage']:.2f} | "
-              f"{f['stage1']:.2f} / {f['stage2']:.2f} / {f['stage3']:.2f} | {r['mean_return']:.1f} |")
+        print(f"| {r['split']} | {r['action_noise']:g} | {r['seed']} | {r['success_rate']:.2f} | "
+              f"{r['mean_max_stage']:.2f} | {f['stage1']:.2f} / {f['stage2']:.2f} / {f['stage3']:.2f} | "
+              f"{r['mean_return']:.1f} |")
     if len(args.seeds) > 1:
         for r in summary:
-            print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- {r['success_std']:.2f} "
-                  f"| {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
+            print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- "
+                  f"{r['success_std']:.2f} | {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
     result = {"task": args.task, "splits": args.splits, "episodes_per_object": args.episodes_per_object,
-              "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary, "command": command_line("benchmarks/exploration_noise.py", argv),
+              "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary,
+              "command": command_line("benchmarks/exploration_noise.py", argv),
               "machine": machine_info(), "fast_mode": fast_mode()}
     if args.json:
         write_json(args.json, result)

@@ -179,6 +179,10 @@ def test_exploration_noise_benchmark_averages_its_seeds(monkeypatch, load_benchm
     for m, pair in zip(out["mean_over_seeds"], (out["rows"][:2], out["rows"][2:])):
         rates = [r["success_rate"] for r in pair]
         assert m["success_rate"] == np.mean(rates) and m["success_std"] == np.std(rates)
+    rows = [{"split": "seen", "action_noise": 0.3, "seed": s, "success_rate": rate, "mean_max_stage": 2.0 + s,
+             "mean_return": 10.0 * s} for s, rate in ((0, 0.5), (1, 1.0))]
+    (m,) = bench.mean_over_seeds(rows)
+    assert (m["success_rate"], m["success_std"], m["mean_max_stage"], m["mean_return"]) == (0.75, 0.25, 2.5, 5.0)
 
 
 def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a_smoke_run(

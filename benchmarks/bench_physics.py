@@ -38,7 +38,6 @@ from dexart_lite.rollout import step_rate
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 BASELINE = "50x10"  # the env's defaults: 50 solver iterations, 10 sub-steps of 4 ms
-parse_setting = physics_setting  # "20x10" -> env keywords (dexart_lite.envs.base)
 
 
 def speeds(tasks: list[str], settings: list[str], steps: int, rounds: int) -> dict:
@@ -48,7 +47,7 @@ def speeds(tasks: list[str], settings: list[str], steps: int, rounds: int) -> di
         rates: dict[str, list[float]] = {s: [] for s in settings}
         for _ in range(rounds):
             for setting in settings:
-                rates[setting].append(step_rate(task, steps, **parse_setting(setting)))
+                rates[setting].append(step_rate(task, steps, **physics_setting(setting)))
         base = statistics.median(rates[settings[0]])
         out[task] = {s: {"steps_per_s": statistics.median(r), "vs_baseline": statistics.median(r) / base}
                      for s, r in rates.items()}
@@ -64,7 +63,7 @@ def solver_success(tasks: list[str], settings: list[str], episodes: int, toleran
         for split in ("seen", "unseen"):
             rates = {}
             for setting in settings:
-                physics = parse_setting(setting)
+                physics = physics_setting(setting)
                 if max_episode_steps:
                     physics["max_episode_steps"] = max_episode_steps
                 rates[setting] = solve(task, split, episodes, seed=0, progress=False, env_kwargs=physics)["success_rate"]
@@ -91,13 +90,13 @@ def main(argv=None) -> dict:
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     for setting in args.settings:
-        parse_setting(setting)
+        physics_setting(setting)
     max_episode_steps = None
     if fast_mode():  # a smoke run of the script, not evidence
         args.steps, args.rounds, args.episodes_per_object, max_episode_steps = 5, 1, 1, 5
 
     start = time.perf_counter()
-    result = {"settings": {s: parse_setting(s) for s in args.settings}, "baseline": args.settings[0],
+    result = {"settings": {s: physics_setting(s) for s in args.settings}, "baseline": args.settings[0],
               "speed": speeds(args.tasks, args.settings, args.steps, args.rounds) if args.speed else None}
     if args.solvers:
         result["solvers"] = solver_success(args.tasks, args.settings, args.episodes_per_object, args.tolerance,

@@ -205,12 +205,14 @@ def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting
     """benchmarks/bench_physics.py: a setting ITERATIONSxFRAME_SKIP reaches the env with the control step
     kept at 40 ms; the report has a speed and a solver row per setting, the baseline's own differences
     being exactly 1x and 0 (fast mode: 5 steps per episode, a smoke run, not evidence)."""
+    from dexart_lite.envs.base import physics_setting
+
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     bench = load_benchmark("bench_physics")
     for bad in ("20", "0x10", "ax10", "20x0", "20x"):
         with pytest.raises(ValueError, match="ITERATIONSxFRAME_SKIP"):
-            bench.parse_setting(bad)
-    env = make("laptop", num_points=32, **bench.parse_setting("20x5")).unwrapped
+            physics_setting(bad)
+    env = make("laptop", num_points=32, **physics_setting("20x5")).unwrapped
     assert env.frame_skip == 5 and env.sim.dt == pytest.approx(0.008) and env.control_dt == pytest.approx(0.04)
     env.close()
     report = bench.main(["--tasks", "laptop", "--settings", "50x10", "20x5", "--json", str(tmp_path / "p.json")])

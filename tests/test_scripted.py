@@ -225,3 +225,29 @@ def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting
         assert row["20x5"]["minus_baseline"] == pytest.approx(row["20x5"]["success_rate"] - row["50x10"]["success_rate"])
     assert report["solvers_within_tolerance"]["50x10"] and report["solvers_no_lower_per_task"]["50x10"]["laptop"]
     assert (tmp_path / "p.json").is_file()
+
+
+def test_bucket_failure_classes_read_the_bail_angle(load_benchmark):
+    """benchmarks/bucket_expert_failures.py: a failed episode is 'flung over' in the phase where q first
+    passed +0.6 rad, 'fell back' where it sank under -1.3 rad after rising past -1.0, else 'other'
+    in its last phase."""
+    classify = load_benchmark("bucket_expert_failures").classify
+    flung = [("hook", -1.57, 0.0), ("raise", -0.5, 0.0), ("slide", 0.7, 0.0), ("fist", 1.57, 0.0)]
+    assert classify(flung) == {"failure": "flung over", "phase": "slide"}
+    fell = [("hook", -1.57, 0.0), ("raise", -0.9, 0.0), ("slide", -1.2, 0.0), ("fist", -1.4, 0.0)]
+    assert classify(fell) == {"failure": "fell back", "phase": "fist"}
+    # sinking under -1.3 before ever rising past -1.0 is not a fall; nor is any angle under +0.6
+    low = [("lower", -1.57, 0.0), ("hook", -1.2, 0.0), ("raise", -1.4, 0.0), ("raise", 0.5, 0.0)]
+    assert classify(low) == {"failure": "other", "phase": "raise"}
+
+
+def test_bucket_failure_benchmark_replays_the_noise_curve_episodes(monkeypatch, load_benchmark):
+    """In fast mode (one episode of the first seen bucket) the success equals ``solve``'s at the same
+    noise and seed: the same resets and noise draws as benchmarks/exploration_noise.py."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    out = load_benchmark("bucket_expert_failures").main(["--sigma", "0.05", "--splits", "seen"])
+    seen = out["splits"]["seen"]
+    name = seen["per_episode"][0]["object"]
+    expected = solve("bucket", "seen", 1, 0, object_names=[name], progress=False, action_noise=0.05)
+    assert seen["episodes"] == 1 and seen["success_rate"] == expected["success_rate"]
+    assert sum(seen["failures"].values()) == round(1 - seen["success_rate"])

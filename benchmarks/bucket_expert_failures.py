@@ -30,6 +30,7 @@ import numpy as np
 
 from dexart_lite.envs import make
 from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.experts.solve import solve_episodes
 from dexart_lite.objects import list_objects
 from dexart_lite.rollout import noisy, run_episodes
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
@@ -65,7 +66,7 @@ def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, obj
         s = env.unwrapped._state
         traces[-1].append((expert.solver.phase, float(s.q), float(s.base_pos[2] - s.base_pos_at_reset[2])))
 
-    episodes = [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]
+    episodes = solve_episodes(names, episodes_per_object, seed)
     results = run_episodes(policy, env, episodes, on_step=on_step, on_reset=on_reset, progress=not fast_mode(),
                            desc=f"bucket/{split}, noise {sigma:g}")
     env.close()

@@ -33,6 +33,7 @@ import numpy as np
 
 from dexart_lite.envs import make
 from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.experts.solve import solve_episodes
 from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.objects import list_objects
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, policy_function
@@ -70,7 +71,7 @@ def run_student(run: Path, split: str, sigma: float, episodes_per_object: int, s
     names = [o.name for o in list_objects(cfg.task, split)]
     if fast_mode():
         names = names[:1]
-    episodes = [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]
+    episodes = solve_episodes(names, episodes_per_object, seed)
     trace: dict = {"arm": [], "hand": [], "palm": [], "region": []}
 
     def on_reset(obs, info):

@@ -19,6 +19,12 @@ from dexart_lite.rollout import noisy, run_episodes
 from dexart_lite.utils import check_choice
 
 
+def solve_episodes(names: list[str], episodes_per_object: int, seed: int) -> list[tuple[int, str]]:
+    """``(reset seed, object)`` of every episode of ``solve``, in its order: episode ``k`` of object ``i``
+    is reset with seed ``seed + 1000 k + i``."""
+    return [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]
+
+
 def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: int = 0, object_names=None,
           progress: bool = True, action_noise: float = 0.0, env_kwargs: dict | None = None) -> dict:
     """Run the expert over every object of a split; success counts if reached at any step.
@@ -37,7 +43,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     names = env.unwrapped.objects.names
     expert = SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy
     policy = noisy(expert(env), action_noise, np.random.default_rng(seed))
-    episodes = [(seed + 1000 * k + i, name) for k in range(episodes_per_object) for i, name in enumerate(names)]
+    episodes = solve_episodes(names, episodes_per_object, seed)
     results = run_episodes(policy, env, episodes, progress=progress, desc=f"solve {task}/{split}")
     env.close()
     rates = {n: float(np.mean([e["success"] for e in results if e["object"] == n])) for n in names}

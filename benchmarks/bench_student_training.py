@@ -19,7 +19,9 @@ ratio to ``fp32`` measured in the same process:
 
 With ``--encoders small medium large`` every variant runs once per PointNet size (labels such as
 ``fp32/large``), all ratios to the first label: the training cost of the encoder study's arms measured
-side by side on one machine, where the study's wall times may come from several.
+side by side on one machine, where the study's wall times may come from several. With ``--chunks 8 32``
+every label runs once per ``pointnet.CHUNK`` (clouds per per-point pass; labels such as ``fp32/chunk8``):
+the chunk that keeps a pass in cache depends on the machine's caches and the encoder's widths.
 
 Without ``--demos`` it first collects 2 noisy expert episodes per seen laptop (about 30 s). Timing
 varies between machines and with load: run it alone; the JSON names the machine and the threads.
@@ -37,6 +39,7 @@ import torch
 
 from dexart_lite.imitation.demos import collect_demos, load_demos, read_manifest
 from dexart_lite.imitation.distill import DistillConfig, build_student, train_student
+from dexart_lite.models import pointnet
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
@@ -68,6 +71,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
     parser.add_argument("--encoders", nargs="+", default=["small"], choices=list(ENCODER_SIZES),
                         help="PointNet sizes; with more than one, every variant runs once per size")
+    parser.add_argument("--chunks", nargs="+", type=int, default=[pointnet.CHUNK],
+                        help="clouds per per-point pass (pointnet.CHUNK); with more than one, every label runs once "
+                        "per chunk")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores, as distill)")
     parser.add_argument("--json", type=Path, help="where to write the results (default: print only)")
     args = parser.parse_args(argv)
@@ -90,13 +96,23 @@ def main(argv=None) -> dict:
         dims = {"num_points": manifest["cloud_points"], "state_dim": manifest["state_dim"],
                 "action_dim": data["expert_action"].shape[-1], "head": cfg.head_widths(), "normalize": cfg.normalize}
         threads = args.threads or torch.get_num_threads()
-        # label -> (variant, encoder): "fp32" with one encoder, "fp32/large" with several
-        labels = {(v if len(args.encoders) == 1 else f"{v}/{e}"): (v, e) for e in args.encoders for v in args.variants}
+        # label -> (variant, encoder, chunk): "fp32" with one encoder and chunk, "fp32/large/chunk8" with several
+        labels = {}
+        for e in args.encoders:
+            for v in args.variants:
+                for c in args.chunks:
+                    label = "/".join([v] + [e] * (len(args.encoders) > 1) + [f"chunk{c}"] * (len(args.chunks) > 1))
+                    labels[label] = (v, e, c)
         runs: dict[str, list[dict]] = {label: [] for label in labels}
+        default_chunk = pointnet.CHUNK
         with torch_threads(threads):
             for repeat in range(args.repeats):
-                for label, (variant, encoder) in labels.items():
-                    runs[label].append(train_once(variant, configs[encoder], dims, demos, data, args.epochs))
+                for label, (variant, encoder, chunk) in labels.items():
+                    pointnet.CHUNK = chunk
+                    try:
+                        runs[label].append(train_once(variant, configs[encoder], dims, demos, data, args.epochs))
+                    finally:
+                        pointnet.CHUNK = default_chunk
                     print(f"repeat {repeat} {label:16s} {runs[label][-1]['samples_per_s']:7.0f} samples/s, "
                           f"last loss {runs[label][-1]['loss_last_epoch']:.4f}")
 
@@ -105,6 +121,7 @@ def main(argv=None) -> dict:
     result = {
         "samples": data.batch_size[0], "epochs": args.epochs, "repeats": args.repeats, "threads": threads,
         "batch_size": cfg.batch_size, "encoder": cfg.encoder, "encoders": args.encoders,
+        "chunks": args.chunks,
         "cloud_points": manifest["cloud_points"], "samples_per_s_best": best,
         "ratio_to_fp32": {v: best[v] / best["fp32"] for v in best} if "fp32" in best else None,
         "ratio_to_first": {label: best[label] / best[first] for label in best}, "first": first,

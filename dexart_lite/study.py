@@ -13,7 +13,9 @@ number of expert and DAgger episodes in total, whatever the number of training o
 
 Writes ``OUT/study.json`` (arms, per-seed results, mean +- std, command, machine, wall time),
 ``OUT/study.png`` (success per arm, seen and unseen, every seed as a dot) and ``OUT/study.md`` (a
-markdown table). These are students of a privileged scripted expert (imitation), not PPO: the
+markdown table). With ``--jobs 2`` two runs go side by side, each with half of the cores' torch threads:
+on 2 cores the environment stepping of one (a single thread) overlaps the training of the other.
+These are students of a privileged scripted expert (imitation), not PPO: the
 studies ask DexArt's questions of the learner that works on a CPU, and say so.
 """
 
@@ -292,9 +294,33 @@ def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unse
     return result
 
 
+def _run_job(cfg, viewpoints: bool, workers: int | None = None) -> dict:
+    """One arm and seed (``run_arm``), then its viewpoint grid if the study has one; in the main process
+    or in a worker process of ``run_study(jobs > 1)``."""
+    record = run_arm(cfg)
+    if viewpoints:
+        record["viewpoints"] = evaluate_viewpoints(cfg, 1, workers=workers)
+    return record
+
+
+def _training_cost(cfg) -> int:
+    """A run's training cost, for ordering parallel jobs: its PointNet's multiply-adds per point (0 for
+    the depth CNN). Training dominates a run's wall time, and the per-point MLP dominates training."""
+    from dexart_lite.models.pointnet import ENCODER_SIZES
+
+    widths = (3, *ENCODER_SIZES.get(cfg.encoder, ()))
+    return sum(a * b for a, b in zip(widths, widths[1:]))
+
+
 def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: list[str] | None = None,
-              overrides: dict | None = None, progress: bool = True, argv: list[str] | None = None) -> dict:
-    """Run (or resume) every arm x seed of study ``name`` on ``task``; write and return ``study.json``."""
+              overrides: dict | None = None, progress: bool = True, argv: list[str] | None = None,
+              jobs: int = 1) -> dict:
+    """Run (or resume) every arm x seed of study ``name`` on ``task``; write and return ``study.json``.
+    ``jobs`` > 1: that many runs at once in worker processes, each with ``cores // jobs`` torch threads
+    (unless ``--set threads=N`` says otherwise)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
     from tqdm import tqdm
 
     study = study_of(name)
@@ -304,6 +330,8 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
         check_choice(f"arm of the {name} study", arm, study.arms)
     if not seeds:
         raise ValueError("a study needs at least one seed")
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
     overrides = dict(overrides or {})
     if fast_mode():  # a smoke run of the runner itself, not evidence
         overrides.update(num_points=32, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
@@ -312,15 +340,32 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
     start = time.perf_counter()
     pretraining = prepare_pretrained(task, out, progress=progress) if study.pretraining else None
     configs = [(arm, seed, arm_config(study, arm, task, seed, out, overrides)) for arm in arms for seed in seeds]
-    runs: dict[str, list[dict]] = {arm: [] for arm in arms}
-    with tqdm(configs, desc=f"study {name} on {task}", unit="run", disable=not progress, dynamic_ncols=True) as bar:
-        for arm, seed, cfg in bar:
-            bar.set_postfix(arm=arm, seed=seed)
-            record = {"seed": seed, **run_arm(cfg)}
-            if study.viewpoints:
-                record["viewpoints"] = evaluate_viewpoints(cfg, 1)
-            runs[arm].append(record)
-    result = summarise(study, task, seeds, runs, out, overrides, time.perf_counter() - start, argv)
+    records: dict[tuple[str, int], dict] = {}
+    with tqdm(total=len(configs), desc=f"study {name} on {task}", unit="run", disable=not progress,
+              dynamic_ncols=True) as bar:
+        if jobs == 1:
+            for arm, seed, cfg in configs:
+                bar.set_postfix(arm=arm, seed=seed)
+                records[arm, seed] = _run_job(cfg, study.viewpoints)
+                bar.update()
+        else:
+            threads = max(1, (os.cpu_count() or 1) // jobs)
+            # the costliest runs first, so that the last one, which runs alone on its share of the cores,
+            # is a cheap one (sorted is stable: arms of equal cost keep the study's order)
+            queue = sorted(configs, key=lambda c: -_training_cost(c[2]))
+            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+                futures = {pool.submit(_run_job, cfg if cfg.threads else dataclasses.replace(cfg, threads=threads),
+                                       study.viewpoints, threads): (arm, seed) for arm, seed, cfg in queue}
+                try:
+                    for future in as_completed(futures):
+                        records[futures[future]] = future.result()
+                        bar.set_postfix(done="{}/seed{}".format(*futures[future]))
+                        bar.update()
+                except BaseException:
+                    pool.shutdown(wait=False, cancel_futures=True)  # the runs not started yet are dropped
+                    raise
+    runs = {arm: [{"seed": seed, **records[arm, seed]} for seed in seeds] for arm in arms}
+    result = summarise(study, task, seeds, runs, out, overrides, time.perf_counter() - start, argv, jobs)
     if pretraining is not None:
         result["pretraining"] = pretraining
     keep_earlier_arms(result, out / "study.json", study)
@@ -333,7 +378,7 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
 
 
 def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[dict]], out: Path, overrides: dict,
-              wall: float, argv) -> dict:
+              wall: float, argv, jobs: int = 1) -> dict:
     # who measured the arms of this invocation (an arm kept from an earlier file keeps its own)
     measured_by = {"command": "dexart-lite study " + " ".join(argv if argv is not None else [study.name, "--task", task]),
                    "machine": machine_info()}
@@ -374,7 +419,10 @@ def summarise(study: Study, task: str, seeds: list[int], runs: dict[str, list[di
             "arms": arms, "eval_episodes_per_object": first["eval_episodes"], "eval_seed": first["eval_seed"],
             "overrides": overrides, "learner": "DAgger students of the scripted expert (imitation, not PPO)",
             "wall_time_s": round(wall, 1),
-            "wall_time_note": "this invocation's time; arms read back from an earlier run add none (see per_seed)",
+            "wall_time_note": "this invocation's time; arms read back from an earlier run add none (see per_seed)"
+                              + (f"; {jobs} runs at a time, so a run's own wall time counts time it shared the "
+                                 "cores" if jobs > 1 else ""),
+            "jobs": jobs,
             **measured_by, "fast_mode": fast_mode(), "out": str(out)}
 
 
@@ -523,6 +571,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
                         help="DistillConfig fields every arm shares, e.g. rounds=4 (the arms' own fields win)")
     parser.add_argument("--out", type=Path, default=None, help="study folder (default runs/studies/<task>_<study>)")
+    parser.add_argument("--jobs", type=int, default=1, help="runs at a time, each with cores/jobs torch threads "
+                        "(2 on 2 cores: one run's single-threaded simulation overlaps the other's training)")
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True, help="show a progress bar")
 
 
@@ -535,9 +585,10 @@ def run(args: argparse.Namespace) -> int:
     arms = [a.strip() for a in args.arms.split(",") if a.strip()] if args.arms else None
     out = args.out or Path("runs/studies") / f"{args.task}_{study.name}"
     argv = [study.name, "--task", args.task, "--seeds", str(args.seeds), "--out", str(out)] + \
-        (["--arms", args.arms] if args.arms else []) + (["--set", *args.overrides] if args.overrides else [])
+        (["--arms", args.arms] if args.arms else []) + (["--set", *args.overrides] if args.overrides else []) + \
+        (["--jobs", str(args.jobs)] if args.jobs != 1 else [])
     result = run_study(study.name, args.task, list(range(args.seeds)), out, arms,
-                       parse_overrides(args.overrides, DistillConfig), args.progress, argv)
+                       parse_overrides(args.overrides, DistillConfig), args.progress, argv, args.jobs)
     print(markdown_table(result))
     print(f"wrote {out / 'study.json'}, {out / 'study.png'}, {out / 'study.md'}")
     return 0

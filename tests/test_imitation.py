@@ -484,6 +484,8 @@ def test_a_run_recorded_before_a_field_existed_is_still_the_same_settings():
     assert not same_settings(recorded, dataclasses.replace(cfg, imagination=False))
     assert not same_settings({**recorded, "seed": 3}, cfg)
     assert not same_settings({**recorded, "a_field_we_never_had": 1}, cfg)
+    # how a run executed is not what it learned: a run trained on 2 threads is read back by one asking for 1
+    assert same_settings({**recorded, "threads": 0, "progress": True}, dataclasses.replace(cfg, threads=1))
 
 
 def test_a_run_folder_spelled_absolute_or_relative_is_the_same_settings(tmp_path, monkeypatch):

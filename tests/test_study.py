@@ -78,6 +78,30 @@ def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, distilled):
                         progress=False)
 
 
+def test_parallel_jobs_give_the_runs_of_one_after_the_other(tmp_path):
+    """``jobs=2``: the runs go to 2 worker processes (costliest first) and give what ``jobs=1`` gives
+    (fast mode: one torch thread either way, and a seed replays bit for bit in any process)."""
+    overrides = {"objects": OBJECT, "max_episode_steps": 6}
+    kwargs = dict(arms=["small", "medium"], overrides=overrides, progress=False)
+    # under two parents: a study does not reuse the runs of one beside it here
+    parallel = study.run_study("encoder", "laptop", [0, 1], tmp_path / "a" / "encoder", jobs=2, **kwargs)
+    serial = study.run_study("encoder", "laptop", [0, 1], tmp_path / "b" / "encoder", **kwargs)
+    keys = ("seed", "seen_success", "unseen_success", "expert_frames", "student_frames", "per_object", "resumed")
+    for arm in ("small", "medium"):
+        assert [{k: r[k] for k in keys} for r in parallel["arms"][arm]["per_seed"]] == \
+               [{k: r[k] for k in keys} for r in serial["arms"][arm]["per_seed"]]
+        assert [r["resumed"] for r in parallel["arms"][arm]["per_seed"]] == [False, False]
+    assert (parallel["jobs"], serial["jobs"]) == (2, 1)
+    assert "2 runs at a time" in parallel["wall_time_note"]
+    # the costliest first: the PointNet's multiply-adds per point order the queue
+    costs = {size: study._training_cost(distill_lib.DistillConfig(encoder=size))
+             for size in ("small", "medium", "large", "depth_cnn")}
+    assert costs["large"] > costs["medium"] > costs["small"] > costs["depth_cnn"] == 0
+    assert costs["small"] == 3 * 64 + 64 * 256
+    with pytest.raises(ValueError, match="jobs must be >= 1, got 0"):
+        study.run_study("encoder", "laptop", [0], tmp_path / "none", jobs=0, **kwargs)
+
+
 def test_an_arm_identical_to_another_studys_finished_arm_is_reused_not_retrained(tmp_path, distilled):
     overrides = {"objects": OBJECT, "max_episode_steps": 6}
     first = study.run_study("encoder", "laptop", [0], tmp_path / "encoder", arms=["small"], overrides=overrides,

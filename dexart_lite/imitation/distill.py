@@ -192,19 +192,22 @@ class DistillConfig:
 
 
 PATH_FIELDS = ("out", "demos", "pretrained")  # compared as resolved paths: runs/x and /abs/runs/x are one folder
+EXECUTION_FIELDS = ("threads", "progress")  # how a run executes, not what it learns: not compared
 
 
 def same_settings(recorded: dict, cfg: DistillConfig) -> bool:
     """Whether a finished run's recorded config (``asdict`` of its ``DistillConfig``) is ``cfg``. A field
     added after the run was recorded counts as equal when ``cfg`` leaves it at its default, which is
     what the run did: finished runs keep being read back when the config gains an option. Paths
-    (``PATH_FIELDS``) are compared resolved against the working directory."""
+    (``PATH_FIELDS``) are compared resolved against the working directory; ``EXECUTION_FIELDS`` (torch
+    threads, the progress bar) are not compared: a study run with ``--jobs 2`` (one thread per run) reads
+    back the runs of one with ``--jobs 1``."""
     def value(key, v):
         return str(Path(v).resolve()) if key in PATH_FIELDS and isinstance(v, str) else v
 
     settings, defaults = asdict(cfg), asdict(DistillConfig())
     return set(recorded) <= set(settings) and all(value(k, recorded.get(k, defaults[k])) == value(k, v)
-                                                  for k, v in settings.items())
+                                                  for k, v in settings.items() if k not in EXECUTION_FIELDS)
 
 
 def validate(cfg: DistillConfig) -> None:

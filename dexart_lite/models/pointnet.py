@@ -32,7 +32,11 @@ ENCODER_SIZES: dict[str, tuple[int, ...]] = {
 FEATURE_DIM = 256
 FILE_FORMAT = "dexart_lite.PointNetEncoder"  # marks files written by save_encoder
 FILE_VERSION = 1
-CHUNK = 32  # clouds per per-point pass: (32, 608, 256) float32 activations (19 MB) stay in cache, 1.5-2x faster
+# clouds per per-point pass: (8, 608, 256) float32 activations (5 MB) stay nearer the cores than one
+# pass over the whole batch. 32 was measured 1.5-2x faster than no chunks on a Xeon VM; on the AMD EPYC
+# VM 8 trains the large PointNet 1.35x, the medium 1.04x and the small 1.13x faster than 32 (the same
+# losses; benchmarks/bench_student_training.py --chunks, results/bench_student_training_chunks.json)
+CHUNK = 8
 
 
 class PointNetEncoder(nn.Module):

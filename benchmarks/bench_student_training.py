@@ -101,7 +101,8 @@ def main(argv=None) -> dict:
         for e in args.encoders:
             for v in args.variants:
                 for c in args.chunks:
-                    label = "/".join([v] + [e] * (len(args.encoders) > 1) + [f"chunk{c}"] * (len(args.chunks) > 1))
+                    parts = [v] + ([e] if len(args.encoders) > 1 else []) + ([f"chunk{c}"] if len(args.chunks) > 1 else [])
+                    label = "/".join(parts)
                     labels[label] = (v, e, c)
         runs: dict[str, list[dict]] = {label: [] for label in labels}
         default_chunk = pointnet.CHUNK

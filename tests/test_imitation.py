@@ -553,6 +553,21 @@ def test_bench_student_training_compares_encoder_sizes_side_by_side(tmp_path, mo
     assert loss["fp32/small"] != loss["fp32/large"]
 
 
+def test_bench_student_training_chunks_change_the_speed_not_the_student(monkeypatch, load_benchmark):
+    """With --chunks, every label runs once per pointnet.CHUNK (labels variant/chunkN): chunking splits the
+    batch of clouds, not a cloud, so each chunk trains the same student (same loss to float rounding), and
+    the module's CHUNK is restored afterwards."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("bench_student_training")
+    from dexart_lite.models import pointnet
+    before = pointnet.CHUNK
+    result = bench.main(["--threads", "1", "--variants", "fp32", "--chunks", "1", "64"])
+    assert list(result["samples_per_s_best"]) == ["fp32/chunk1", "fp32/chunk64"] and result["chunks"] == [1, 64]
+    loss = result["loss_last_epoch"]
+    assert loss["fp32/chunk1"] == pytest.approx(loss["fp32/chunk64"], rel=1e-5)
+    assert pointnet.CHUNK == before
+
+
 def test_perception_probe_smoke(tmp_path, monkeypatch, load_benchmark):
     """benchmarks/perception_probe.py in fast mode: the targets are the expert's privileged state of the
     cloud shown, and every variant reports a finite error per group for both splits."""

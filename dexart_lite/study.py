@@ -25,7 +25,10 @@ import argparse
 import dataclasses
 import json
 import os
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -261,15 +264,66 @@ def _evaluate_camera(checkpoint: str, task: str, split: str, episodes: int, seed
     return evaluate(student, task, split, episodes, seed, env_kwargs)["success_rate"]
 
 
+@contextmanager
+def _sigterm_interrupts():
+    """In the study's main process: while the runs go, SIGTERM (``kill``, ``timeout``, a job scheduler)
+    raises ``KeyboardInterrupt``, as Ctrl-C does, so that ``_process_pool`` stops its workers instead of
+    leaving them to finish their runs unwatched. Only the main thread may set a handler; elsewhere a no-op."""
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _exit_on_sigterm() -> None:
+    """In a worker process (the pool's initializer): SIGTERM terminates the worker's own children (the
+    pool of a viewpoint evaluation), then ends the worker at once, without a traceback."""
+    import multiprocessing
+
+    def stop(signum, frame):
+        for child in multiprocessing.active_children():
+            child.terminate()
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
+
+
+@contextmanager
+def _process_pool(workers: int):
+    """A ``ProcessPoolExecutor`` of ``workers`` spawned processes that, when the body raises (an error,
+    Ctrl-C, SIGTERM), drops the queued calls and terminates the running ones: a stopped study leaves no
+    process behind. A terminated worker terminates its own children first (``_exit_on_sigterm``)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=_exit_on_sigterm)
+    try:
+        yield pool
+    except BaseException:
+        processes = list((pool._processes or {}).values())  # private; Python 3.14 has pool.terminate_workers()
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join(timeout=30)
+        raise
+    pool.shutdown()
+
+
 def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unseen"), workers: int | None = None) -> dict:
     """Success of the student in ``cfg.out`` under every camera of ``camera_grid``: ``{split: 5 x 7 list}``
     (rows polar, columns azimuth), deterministic actions, the run's evaluation seed and env settings
     (camera perturbation and point noise included). Each cell seeds its own env, so the cells run in
     ``workers`` processes (default: one per core) with the same result as one after the other. Written
     to ``cfg.out/viewpoints.json``; read back if it exists with the same settings."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
     out = Path(cfg.out)
     path = out / VIEWPOINTS
     settings = {"episodes_per_object": episodes_per_object, "splits": list(splits), "azimuths": list(VIEW_AZIMUTHS),
@@ -283,7 +337,7 @@ def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unse
     args = [(str(out / "checkpoint.pt"), cfg.task, split, episodes_per_object, cfg.eval_seed, kwargs)
             for _, _, split, kwargs in cells]
     workers = max(1, workers or os.cpu_count() or 1)
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with _process_pool(workers) as pool:
         rates = list(pool.map(_evaluate_camera, *zip(*args)))
     grid = {split: np.zeros((len(VIEW_POLARS), len(VIEW_AZIMUTHS))) for split in splits}
     for (a, p, split, _), rate in zip(cells, rates):
@@ -318,8 +372,7 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
     """Run (or resume) every arm x seed of study ``name`` on ``task``; write and return ``study.json``.
     ``jobs`` > 1: that many runs at once in worker processes, each with ``cores // jobs`` torch threads
     (unless ``--set threads=N`` says otherwise)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
 
     from tqdm import tqdm
 
@@ -341,8 +394,8 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
     pretraining = prepare_pretrained(task, out, progress=progress) if study.pretraining else None
     configs = [(arm, seed, arm_config(study, arm, task, seed, out, overrides)) for arm in arms for seed in seeds]
     records: dict[tuple[str, int], dict] = {}
-    with tqdm(total=len(configs), desc=f"study {name} on {task}", unit="run", disable=not progress,
-              dynamic_ncols=True) as bar:
+    with _sigterm_interrupts(), tqdm(total=len(configs), desc=f"study {name} on {task}", unit="run",
+                                     disable=not progress, dynamic_ncols=True) as bar:
         if jobs == 1:
             for arm, seed, cfg in configs:
                 bar.set_postfix(arm=arm, seed=seed)
@@ -353,17 +406,13 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
             # the costliest runs first, so that the last one, which runs alone on its share of the cores,
             # is a cheap one (sorted is stable: arms of equal cost keep the study's order)
             queue = sorted(configs, key=lambda c: -_training_cost(c[2]))
-            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            with _process_pool(jobs) as pool:  # stopped (error, Ctrl-C, SIGTERM): no worker outlives it
                 futures = {pool.submit(_run_job, cfg if cfg.threads else dataclasses.replace(cfg, threads=threads),
                                        study.viewpoints, threads): (arm, seed) for arm, seed, cfg in queue}
-                try:
-                    for future in as_completed(futures):
-                        records[futures[future]] = future.result()
-                        bar.set_postfix(done="{}/seed{}".format(*futures[future]))
-                        bar.update()
-                except BaseException:
-                    pool.shutdown(wait=False, cancel_futures=True)  # the runs not started yet are dropped
-                    raise
+                for future in as_completed(futures):
+                    records[futures[future]] = future.result()
+                    bar.set_postfix(done="{}/seed{}".format(*futures[future]))
+                    bar.update()
     runs = {arm: [{"seed": seed, **records[arm, seed]} for seed in seeds] for arm in arms}
     result = summarise(study, task, seeds, runs, out, overrides, time.perf_counter() - start, argv, jobs)
     if pretraining is not None:

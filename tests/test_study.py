@@ -4,6 +4,7 @@ The suite runs in fast mode (conftest): a study's runs are distillations of a fe
 """
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -272,3 +273,66 @@ def test_pretrain_study_prepares_encoders_and_loads_them(tmp_path):
     assert scratch.pretrained is None and not scratch.normalize_points  # the arms differ in the encoder only
     again = study.prepare_pretrained("laptop", tmp_path, progress=False)  # read back, not redone
     assert again == metrics
+
+
+
+def _living_processes() -> dict[int, int]:
+    """``{pid: parent pid}`` of every living process (Linux, from /proc/<pid>/stat; a zombie counts as gone)."""
+    parents = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            state, ppid = stat.read_text().rsplit(")", 1)[1].split()[:2]  # after "pid (command)"
+        except OSError:  # the process ended while we looked
+            continue
+        if state != "Z":
+            parents[int(stat.parent.name)] = int(ppid)
+    return parents
+
+
+def _descendants(pid: int) -> set[int]:
+    parents, found, frontier = _living_processes(), set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process tree from /proc (Linux)")
+def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
+    """``kill`` (SIGTERM) on ``study --jobs 2`` ends it as Ctrl-C does, with its one-line message, and its
+    worker processes, busy in distillations that would train for hours, end with it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    env = {k: v for k, v in os.environ.items() if k != "DEXART_LITE_FAST"}  # fast mode would cap the epochs
+    busy = ["objects=" + OBJECT, "num_points=32", "max_episode_steps=6", "demo_episodes_per_object=1", "rounds=1",
+            "episodes_per_round=1", "epochs=1000000", "eval_episodes=1"]  # a run that trains for hours
+    stderr = tmp_path / "stderr.txt"  # a file, not a pipe: a worker left behind would hold a pipe open
+    workers: set[int] = set()
+    with stderr.open("w") as err:
+        main = subprocess.Popen([sys.executable, "-m", "dexart_lite.cli", "study", "encoder", "--task", "laptop",
+                                 "--seeds", "2", "--arms", "small", "--jobs", "2", "--no-progress", "--set", *busy,
+                                 "--out", str(tmp_path / "study")], env=env, stderr=err)
+    try:
+        deadline = time.monotonic() + 120
+        while not (tmp_path / "study" / "small" / "seed1").exists():  # both workers have started a run
+            assert main.poll() is None and time.monotonic() < deadline, "the study did not start its runs"
+            time.sleep(0.2)
+        workers = _descendants(main.pid)
+        assert len(workers) >= 2
+        main.send_signal(signal.SIGTERM)
+        assert main.wait(timeout=60) == 130
+        assert stderr.read_text().strip().splitlines()[-1] == "dexart-lite study: interrupted"
+        deadline = time.monotonic() + 30
+        while workers & set(_living_processes()):
+            assert time.monotonic() < deadline, "worker processes outlived the study"
+            time.sleep(0.2)
+    finally:
+        for pid in workers | _descendants(main.pid) | {main.pid}:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass

@@ -317,7 +317,7 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
                                  "--seeds", "2", "--arms", "small", "--jobs", "2", "--no-progress", "--set", *busy,
                                  "--out", str(tmp_path / "study")], env=env, stderr=err)
     try:
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + 300  # two spawned workers import torch and collect demos first
         while not (tmp_path / "study" / "small" / "seed1").exists():  # both workers have started a run
             assert main.poll() is None and time.monotonic() < deadline, "the study did not start its runs"
             time.sleep(0.2)

@@ -131,6 +131,9 @@ class DexArtEnv(gym.Env):
     RAND_POS: float = 0.0  # m, one-sided uniform [0, RAND_POS) on x, y and z (as DexArt)
     RAND_YAW: float = 0.0  # rad, uniform [-RAND_YAW, RAND_YAW]
     TERMINATE_ON_SUCCESS: bool = True
+    # False: ``step`` skips the observation (the camera render) and returns the last one again, for the
+    # guide steps of a start-state curriculum (rl/curriculum.py), which no learner sees; reset always observes
+    observe_steps: bool = True
     EXTRA_STATE: int = 0  # length of extra_state()
     REBUILD_EVERY: int = 200  # resets between two builds of the simulation (see reset)
 
@@ -318,7 +321,10 @@ class DexArtEnv(gym.Env):
             info["success"], info["point_labels"] = False, self._labels
             return self._obs, 0.0, False, True, info
         self._state = state
-        self._obs = self._observe(state, info)
+        if self.observe_steps or self.observation == "state":
+            self._obs = self._observe(state, info)
+        else:  # a guide step whose observation nobody reads (rl/curriculum.py): no camera render
+            info["point_labels"] = self._labels
         reward = float(sum(info["reward_terms"].values()))
         return self._obs, reward, bool(info["success"] and self.TERMINATE_ON_SUCCESS), False, info
 

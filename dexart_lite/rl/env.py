@@ -33,6 +33,7 @@ from torchrl.envs import Compose, GymWrapper, InitTracker, RewardSum, StepCounte
 from torchrl.envs.libs.gym import default_info_dict_reader
 
 from dexart_lite.envs import make as make_gym_env
+from dexart_lite.rl.curriculum import GuidedStart
 
 # info keys copied into the tensordict, with their specs (one value per step)
 INFO_SPECS = {
@@ -41,6 +42,8 @@ INFO_SPECS = {
     "progress": Unbounded(shape=(), dtype=torch.float32),
     "episode_success": Categorical(2, shape=(), dtype=torch.bool),
     "episode_max_stage": Categorical(4, shape=(), dtype=torch.int64),
+    "start_step": Unbounded(shape=(), dtype=torch.int64),  # guide steps before the episode's first observation
+    "start_demo": Unbounded(shape=(), dtype=torch.int64),  # its demonstration (reverse curriculum) or -1
 }
 NUMPY_DTYPES = {torch.bool: np.bool_, torch.int64: np.int64, torch.float32: np.float32}
 
@@ -75,10 +78,14 @@ class EpisodeInfo(gym.Wrapper):
 
 
 def make_env(task: str, *, seed: int | None = None, point_noise: bool = True, camera_noise: bool = True,
+             level: dict | None = None, guide: str = "expert", guide_render: bool = True,
              **env_kwargs) -> TransformedEnv:
     """The training / evaluation env of ``task``, seeded with ``seed`` if given; ``env_kwargs`` go to
-    the gymnasium env (split, object_names, num_points, imagination, randomize, max_episode_steps, ...)."""
-    gym_env = EpisodeInfo(make_gym_env(task, point_noise=point_noise, camera_noise=camera_noise, **env_kwargs))
+    the gymnasium env (split, object_names, num_points, imagination, randomize, max_episode_steps, ...).
+    ``level``, ``guide``, ``guide_render``: the start-state curriculum (``rl/curriculum.GuidedStart``;
+    None: the env's own resets), whose guide steps happen inside the reset and are never collected."""
+    gym_env = make_gym_env(task, point_noise=point_noise, camera_noise=camera_noise, **env_kwargs)
+    gym_env = EpisodeInfo(GuidedStart(gym_env, level, guide, guide_render))
     env = GymWrapper(gym_env)
     env.set_info_dict_reader(default_info_dict_reader(list(INFO_SPECS), spec=dict(INFO_SPECS)))
     env = TransformedEnv(env, Compose(InitTracker(), StepCounter(), RewardSum()))

@@ -45,6 +45,7 @@ from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, Acting, acti
 from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_encoder
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
+from dexart_lite.rl.curriculum import Curriculum, CurriculumConfig, find_demos, guide_demos, send_level
 from dexart_lite.rl.checkpoint import architecture, load_checkpoint, network_encoder, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
@@ -117,6 +118,15 @@ class PPOConfig:
     bc_decay: float = field(default=0.8, metadata={"help": "the BC weight is multiplied by this after every batch"})
     bc_demos: str | None = field(default=None, metadata={"help": "demonstrations folder (`dexart-lite data demos`, "
                                  "or a distill run's demos/) for the BC term"})
+    demo_episodes: int = field(default=0, metadata={"help": "guide demonstrations per training object, collected "
+                               "at the start in the run's observation (rl/curriculum.guide_demos; the scripted "
+                               "expert, privileged, training only): the data of --bc-warmstart and of --bc-coef "
+                               "(instead of --bc-demos). Counted apart from the online frames. 0: none"})
+    demo_noise: float = field(default=0.1, metadata={"help": "std of the noise on the demonstrations' executed "
+                              "actions (the labels stay clean)"})
+    bc_warmstart: int = field(default=0, metadata={"help": "epochs of behaviour cloning (MSE of the action mean "
+                              "to the labels) on the --demo-episodes data before the first batch; the inputs are "
+                              "normalised with the demonstrations' statistics. 0: off"})
     anchor_coef: float = field(default=0.0, metadata={"help": "weight of a KL penalty to the --init-from policy "
                                "on the batch's visited states, KL(pi || pi_init) summed over the action dims (as "
                                "RLHF's KL to the reference model); it keeps the fine-tuned policy near the student "
@@ -132,6 +142,22 @@ class PPOConfig:
     sil_capacity: int = field(default=20_000, metadata={"help": "steps of the best episodes kept for --sil-coef (in "
                               "memory; a resumed run starts with an empty buffer)"})
     sil_value_coef: float = field(default=0.01, metadata={"help": "weight of the self-imitation value term (SIL's 0.01)"})
+    curriculum: str = field(default="none", metadata={"help": "start-state curriculum (rl/curriculum.py): none "
+                            "(DexArt: every episode from the true reset), uniform (the guide acts h ~ U[0, H] steps "
+                            "first) or reverse (RFCL: a start frontier per demonstration moves back after "
+                            "successes). The guide's steps are never collected nor counted"})
+    curriculum_horizon: int = field(default=130, metadata={"help": "uniform: H, the largest number of guide steps"})
+    curriculum_demos: int = field(default=11, metadata={"help": "reverse: demonstrations, (seed, object) pairs the "
+                                  "guide solves, one frontier each"})
+    curriculum_step: int = field(default=5, metadata={"help": "reverse: steps a frontier moves back (RFCL: 4-8)"})
+    curriculum_successes: int = field(default=3, metadata={"help": "reverse: successes in a row from a frontier "
+                                      "before it moves (RFCL: 3)"})
+    curriculum_true_resets: float = field(default=0.1, metadata={"help": "reverse: share of episodes that start "
+                                          "from the true reset (all once 90%% of the frontiers are at 0)"})
+    guide: str = field(default="expert", metadata={"help": "who acts before the learner: expert (the scripted, "
+                       "privileged solver; training only) or a checkpoint file"})
+    guide_render: bool = field(default=False, metadata={"help": "render the camera on every guide step (False: "
+                               "only on the last; the same physical state, other random draws in the cloud)"})
     freeze_encoder: bool = field(default=False, metadata={"help": "keep the PointNet fixed (DexArt fine-tunes it)"})
     eval_episodes: int = field(default=10, metadata={"help": "evaluation episodes per object at the end (0: none)"})
     eval_seed: int = 100
@@ -246,11 +272,39 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError(f"obs_norm_steps must be >= 0, got {cfg.obs_norm_steps}")
     if cfg.obs_norm_steps and cfg.init_from:
         raise ValueError("--init-from brings its own input normalisation: drop --obs-norm-steps")
-    if cfg.bc_coef > 0 and not cfg.bc_demos:
-        raise ValueError("bc_coef > 0 needs --bc-demos (a demonstrations folder)")
+    if cfg.bc_coef > 0 and not (cfg.bc_demos or cfg.demo_episodes):
+        raise ValueError("bc_coef > 0 needs --bc-demos (a demonstrations folder) or --demo-episodes")
+    if cfg.demo_episodes < 0 or cfg.bc_warmstart < 0 or not (math.isfinite(cfg.demo_noise) and cfg.demo_noise >= 0):
+        raise ValueError(f"need demo_episodes >= 0, bc_warmstart >= 0 and a finite demo_noise >= 0, got "
+                         f"{cfg.demo_episodes}, {cfg.bc_warmstart}, {cfg.demo_noise}")
+    if cfg.bc_warmstart and not cfg.demo_episodes:
+        raise ValueError("bc_warmstart needs --demo-episodes (the data it clones)")
+    if cfg.demo_episodes and (cfg.bc_demos or cfg.obs_norm_steps or cfg.init_from):
+        raise ValueError("--demo-episodes brings its own data and input normalisation: drop --bc-demos, "
+                         "--obs-norm-steps and --init-from")
+    curriculum_config(cfg).validate()
+    if cfg.curriculum != "none" and cfg.backend != "process":
+        raise ValueError(f"a curriculum needs the process backend (its level reaches the workers through the "
+                         f"collector), got backend {cfg.backend!r}")
     if cfg.backend == "ray" and importlib.util.find_spec("ray") is None:
         raise RuntimeError("the ray backend needs Ray, an optional extra: pip install '.[distributed]' "
                            "(or pip install 'dexart_lite[distributed]')")
+
+
+def curriculum_config(cfg: PPOConfig) -> CurriculumConfig:
+    return CurriculumConfig(cfg.curriculum, cfg.curriculum_horizon, cfg.curriculum_demos, cfg.curriculum_step,
+                            cfg.curriculum_successes, cfg.curriculum_true_resets, cfg.guide)
+
+
+def make_curriculum(cfg: PPOConfig) -> Curriculum | None:
+    """The run's start-state schedule (None without one); ``reverse`` first finds its demonstrations: the
+    guide's solved episodes on the training objects (seeds from ``cfg.seed``)."""
+    if cfg.curriculum == "none":
+        return None
+    ccfg = curriculum_config(cfg)
+    kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "observation"}
+    demos = find_demos(cfg.task, ccfg.demos, cfg.split, cfg.seed, kwargs, cfg.guide) if ccfg.schedule == "reverse" else None
+    return Curriculum(ccfg, demos)
 
 
 def make_collector(cfg: PPOConfig, env_fns: list, actor_critic, total_frames: int):
@@ -321,6 +375,7 @@ class Learner:
     anchor: torch.nn.Module | None = None  # a frozen copy of the --init-from policy (--anchor-coef) or None
     sil: SelfImitationBuffer | None = None  # the best episodes so far (--sil-coef) or None
     critic: torch.nn.Module | None = None  # the value head the loss trains (fed detached features with --critic-detach)
+    demos: dict | None = None  # --demo-episodes: their frames (not online frames), the guide's success, BC losses
 
 
 def open_run(cfg: PPOConfig) -> Path:
@@ -378,6 +433,28 @@ class DetachedInput(torch.nn.Module):
         return self.net(x.detach())
 
 
+def bc_warmstart(actor_critic, samples, epochs: int, seed: int, lr: float = 1e-3, batch: int = 256) -> list[float]:
+    """Fix the trunk's input normalisation from ``samples`` (the demonstrations), then ``epochs`` passes of
+    Adam on the MSE of the action mean to ``samples["expert_action"]``; the mean loss of each epoch."""
+    points = samples.get(POINTS_KEY, None)
+    trunk_of(actor_critic).set_normalization(samples[STATE_KEY], points)
+    policy = actor_critic.get_policy_operator()
+    params = [p for p in policy.parameters() if p.requires_grad]
+    optimizer = torch.optim.Adam(params, lr=lr)
+    generator, losses = torch.Generator().manual_seed(seed), []
+    for _ in range(epochs):
+        total = 0.0
+        for idx in torch.randperm(len(samples), generator=generator).split(batch):
+            loc, _ = action_distribution(policy, samples[idx])
+            loss = torch.nn.functional.mse_loss(loc, samples[idx]["expert_action"])
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * len(idx)
+        losses.append(total / len(samples))
+    return losses
+
+
 def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     """Actor-critic (from scratch, from ``--init-from``, or with a pretrained and optionally frozen PointNet),
     ClipPPOLoss, Adam and GAE."""
@@ -389,11 +466,19 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     num_points, state_dim, action_dim = env_dims(probe)
     probe.close()
     arch, weights = initial_weights(cfg, state_dim, action_dim)
-    if cfg.obs_norm_steps:
+    if cfg.obs_norm_steps or cfg.demo_episodes:
         arch["normalize"] = True
     actor_critic = make_actor_critic(state_dim, action_dim, network_encoder(asdict(cfg)), cfg.init_log_std, **arch)
     if cfg.obs_norm_steps and not cfg.resume:  # a resumed run loads the statistics with the weights
         init_normalization(actor_critic, env_fn, cfg.obs_norm_steps, cfg.seed)
+    bc_data = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 and cfg.bc_demos else None
+    demo_info = None
+    if cfg.demo_episodes:  # the guide's demonstrations (a resumed run collects them again: same seeds, same data)
+        kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
+        bc_data, demo_success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise,
+                                            10_000 + cfg.seed, kwargs, cfg.guide)
+        warm = bc_warmstart(actor_critic, bc_data, cfg.bc_warmstart, cfg.seed) if not cfg.resume else []
+        demo_info = {"frames": len(bc_data), "guide_success": demo_success, "warmstart_loss": warm}
     if weights is not None:  # strict: every weight of the student, the input normalisation included
         actor_critic.load_state_dict(weights, strict=True)
         set_action_log_std(actor_critic, cfg.init_log_std)  # the student's log-std was never trained (MSE)
@@ -417,18 +502,21 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.lmbda, value_network=None, average_gae=False)  # reads the values
     dims = {"num_points": num_points, "state_dim": state_dim, "action_dim": action_dim,
             **{k: list(v) if isinstance(v, tuple) else v for k, v in architecture(arch).items()}}
-    bc_data = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 else None
     anchor = None
     if cfg.anchor_coef > 0:  # the student as loaded, before any update (a resumed run reloads it from --init-from)
         anchor = copy.deepcopy(actor_critic.get_policy_operator()).requires_grad_(False)
     sil = SelfImitationBuffer(cfg.sil_capacity, cfg.gamma) if cfg.sil_coef > 0 else None
     return Learner(actor_critic, loss_module, optimizer, trainable, gae, actor_critic.get_value_operator(), dims,
-                   bc_data, anchor, sil, critic)
+                   bc_data, anchor, sil, critic, demo_info)
 
 
-def restore(learner: Learner, cfg: PPOConfig, path: Path) -> tuple[int, int, list]:
-    """Weights and optimizer from a checkpoint of the same task and encoder; (frames, batches, history)."""
+def restore(learner: Learner, cfg: PPOConfig, path: Path, curriculum: Curriculum | None = None) -> tuple[int, int, list]:
+    """Weights, optimizer and curriculum from a checkpoint of the same task and encoder; (frames, batches, history)."""
     state = load_checkpoint(path)
+    if curriculum is not None:
+        if state.get("curriculum") is None:
+            raise ValueError(f"--resume: {path} was trained without a curriculum; resume it with --curriculum none")
+        curriculum.load_state_dict(state["curriculum"])
     if state["config"]["encoder"] != cfg.encoder or state["config"]["task"] != cfg.task:
         raise ValueError(f"--resume: {path} is a {state['config']['encoder']} {state['config']['task']} "
                          f"run, not {cfg.encoder} {cfg.task}")
@@ -437,10 +525,15 @@ def restore(learner: Learner, cfg: PPOConfig, path: Path) -> tuple[int, int, lis
     return state["frames"], state["batches"], state["history"]
 
 
-def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int, history: list) -> Path:
+def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int, history: list,
+         curriculum: Curriculum | None = None) -> Path:
+    """The run's state: weights, optimizer, counters, history and the curriculum's schedule (frontiers,
+    streaks). Not kept: the workers' env and RNG states (a resumed run collects on new seeds) and the
+    self-imitation buffer."""
     return save_checkpoint(path, {
         "config": asdict(cfg), "model": learner.actor_critic.state_dict(), "optimizer": learner.optimizer.state_dict(),
-        "frames": frames, "batches": batches, "history": history, "dims": learner.dims})
+        "frames": frames, "batches": batches, "history": history, "dims": learner.dims,
+        "curriculum": curriculum.state_dict() if curriculum is not None else None})
 
 
 def advantages(data, learner: Learner, reward_scale: float = 1.0):
@@ -465,7 +558,7 @@ def bc_weight(cfg: PPOConfig, batch: int) -> float:
 def action_distribution(policy, samples) -> tuple[torch.Tensor, torch.Tensor]:
     """(loc, scale), each (N, action_dim), of the Gaussian that ``policy`` (a policy operator) puts on the
     point clouds and state vectors of ``samples``."""
-    td = policy(samples.select(POINTS_KEY, STATE_KEY).clone())
+    td = policy(samples.select(POINTS_KEY, STATE_KEY, strict=False).clone())
     return td["loc"], td["scale"]
 
 
@@ -596,14 +689,16 @@ def train(cfg: PPOConfig) -> dict:
     # ---- env factory (picklable, for the worker processes), the learner, and where we start from
     env_fn = partial(make_env, cfg.task, split=cfg.split, **cfg.env_kwargs())
     learner = build_learner(cfg, env_fn)
-    frames_done, batches, history = restore(learner, cfg, ckpt_path) if cfg.resume else (0, 0, [])
+    curriculum = make_curriculum(cfg)  # the start-state schedule (None: true resets only); its state lives here
+    frames_done, batches, history = restore(learner, cfg, ckpt_path, curriculum) if cfg.resume else (0, 0, [])
 
     # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass, ``Acting``).
     # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed
     # the envs because DistributedCollector.set_seed fails in torchrl 0.14.1.
     collector = None
     if cfg.frames > frames_done:
-        env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i) for i in range(max(cfg.workers, 1))]
+        level = dict(level=curriculum.level(), guide=cfg.guide, guide_render=cfg.guide_render) if curriculum else {}
+        env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i, **level) for i in range(max(cfg.workers, 1))]
         collector = make_collector(cfg, env_fns, learner.actor_critic, total_frames=cfg.frames - frames_done)
     in_process = cfg.backend == "process" and cfg.workers <= 1  # collects in this process, one action at a time
     collect_threads = 1 if in_process else learner_threads
@@ -620,12 +715,15 @@ def train(cfg: PPOConfig) -> dict:
                 learner.sil.add(data)
             losses = ppo_update(flat, learner, cfg, batches)
             collector.update_policy_weights_()
+            starts = curriculum.update(data) if curriculum is not None else {}  # frontiers move on this batch
+            if cfg.curriculum == "reverse":
+                send_level(collector, curriculum.level())
             updated = time.perf_counter()
 
             # ---- logging and checkpoints
             n = data.numel()
             frames_done, batches = frames_done + n, batches + 1
-            row = {"frames": frames_done, "batch": batches, **batch_stats(data), **losses,
+            row = {"frames": frames_done, "batch": batches, **batch_stats(data), **starts, **losses,
                    "log_std": float(action_log_std(learner.actor_critic).mean()),
                    **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()}
                       if learner.sil is not None else {}),
@@ -637,7 +735,7 @@ def train(cfg: PPOConfig) -> dict:
             bar.update(n)
             bar.set_postfix(ret=f"{row['episode_return']:.1f}", succ=f"{row['success_rate']:.2f}", fps=f"{row['fps']:.0f}")
             if batches % cfg.checkpoint_every == 0:
-                save(learner, cfg, ckpt_path, frames_done, batches, history)
+                save(learner, cfg, ckpt_path, frames_done, batches, history, curriculum)
             if cfg.max_minutes is not None and time.perf_counter() - start > 60 * cfg.max_minutes:
                 break
             torch.set_num_threads(collect_threads)
@@ -647,9 +745,9 @@ def train(cfg: PPOConfig) -> dict:
         if collector is not None:
             collector.shutdown()
         torch.set_num_threads(learner_threads)
-    ckpt = save(learner, cfg, ckpt_path, frames_done, batches, history)
+    ckpt = save(learner, cfg, ckpt_path, frames_done, batches, history, curriculum)
     result = evaluate_and_report(cfg, learner, history, start)  # ---- seen and unseen objects, curve, report
-    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, **result}
+    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, "demos": learner.demos, **result}
 
 
 # ---------------------------------------------------------------- command line

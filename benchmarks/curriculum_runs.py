@@ -1,0 +1,118 @@
+"""RL that starts from the experts: one recipe on one task and observation, several seeds, evaluated from the true reset.
+
+    python benchmarks/curriculum_runs.py --task laptop --obs state --recipe reverse_bc --seeds 0 1 --jobs 2 \
+        --frames 1000000 --max-minutes 60
+    python benchmarks/curriculum_runs.py ... --resume      # continue interrupted runs from their checkpoints
+
+Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<obs>_<recipe>_s<seed>`` (with
+``--jobs 2`` two seeds train at once, one collector process each). Written, after every finished seed, to
+``benchmarks/results/curriculum/<task>_<obs>_<recipe>.json``:
+
+    task, obs, recipe, settings (the PPOConfig fields the recipe sets), frames (online env frames per seed,
+    the guide's steps excluded), demo_frames (the demonstrations' steps, counted apart), per_seed (seed,
+    frames, seen_success, unseen_success, wall_time_s, demo_frames, guide_success, curve: frames, success of
+    the collected episodes, of those from the true reset (h = 0) and from the frontier, the mean frontier),
+    seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
+
+Evaluation: deterministic actions from the true reset (no guide), ``--eval-episodes`` per seen and unseen
+object, env seed 100, as ``dexart-lite eval``. The guide and the demonstrations are the scripted experts,
+which read the simulator: they are used in training only; the policy observes what it always does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import torch
+
+import dexart_lite
+from dexart_lite.rl import ppo
+from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
+
+RESULTS = Path(__file__).parent / "results" / "curriculum"
+# Recipes: the fast preset (4k frames per batch, 5 epochs, lr 3e-4, rewards x 0.01) plus these fields.
+# reverse_bc: RFCL's reverse curriculum (a frontier per demonstration, moved back 5 steps after 3 successes in
+# a row from it) on a policy cloned from the expert first (30 epochs of MSE on 4 noisy expert episodes per
+# training object, inputs normalised with their statistics), whose critic learns alone for 3 batches, with a
+# BC term (weight 0.5, x 0.95 per batch) and a small action std (0.1): the warm start keeps the grasp the
+# expert made at the hand-over, the curriculum walks the start back to the true reset.
+DEMO = {"demo_episodes": 4, "demo_noise": 0.1, "bc_warmstart": 30, "critic_warmup": 3, "bc_coef": 0.5,
+        "bc_decay": 0.95, "init_log_std": -2.3, "obs_norm_steps": 0}
+RECIPES = {
+    "ppo": {},
+    "bc": dict(DEMO),  # the same warm start and BC term, every episode from the true reset
+    "reverse_bc": {**DEMO, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
+    "uniform_bc": {**DEMO, "curriculum": "uniform", "curriculum_horizon": 130},
+}
+CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean", "wall_s")
+
+
+def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> ppo.PPOConfig:
+    overrides = dict(RECIPES[recipe], task=task, obs=obs, seed=seed, frames=frames, workers=1,
+                     eval_episodes=args.eval_episodes, max_minutes=args.max_minutes, progress=False,
+                     threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_{obs}_{recipe}_s{seed}"))
+    if fast_mode():  # a smoke run of the script itself, not evidence
+        overrides.update(frames_per_batch=200, minibatch=100, epochs=1, num_points=64, max_episode_steps=30,
+                         eval_episodes=1, frames=400, demo_episodes=min(overrides.get("demo_episodes", 0), 1),
+                         bc_warmstart=min(overrides.get("bc_warmstart", 0), 2), curriculum_demos=2)
+    return ppo.preset("fast", **overrides)
+
+
+def run_seed(cfg: ppo.PPOConfig) -> dict:
+    """Train (or resume) one seed; its row of ``per_seed``."""
+    resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
+    result = ppo.train(ppo.dataclasses.replace(cfg, resume=resume))
+    clean = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731 (JSON has no NaN)
+    return {"seed": cfg.seed, "frames": result["frames"],
+            "seen_success": result["eval"]["seen"]["success_rate"],
+            "unseen_success": result["eval"]["unseen"]["success_rate"],
+            "seen_mean_max_stage": result["eval"]["seen"]["mean_max_stage"],
+            "unseen_mean_max_stage": result["eval"]["unseen"]["mean_max_stage"],
+            "wall_time_s": round(result["history"][-1]["wall_s"], 1) if result["history"] else 0.0,
+            "wall_time_with_eval_s": round(result["wall_time_s"], 1), "resumed": resume,
+            "demo_frames": (result["demos"] or {}).get("frames", 0),
+            "guide_success": (result["demos"] or {}).get("guide_success"),
+            "curve": [{k: clean(row.get(k)) for k in CURVE_KEYS} for row in result["history"]]}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    parser.add_argument("--obs", default="state", choices=["state", "cloud"])
+    parser.add_argument("--recipe", default="reverse_bc", choices=list(RECIPES))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--frames", type=int, default=1_000_000, help="online frames per seed (at most)")
+    parser.add_argument("--max-minutes", type=float, default=None, help="stop each seed's training after this")
+    parser.add_argument("--jobs", type=int, default=1, help="seeds trained at once")
+    parser.add_argument("--eval-episodes", type=int, default=3, help="per seen and unseen object")
+    parser.add_argument("--runs", default="runs/curriculum")
+    parser.add_argument("--results", type=Path, default=RESULTS)
+    parser.add_argument("--resume", action="store_true", help="(runs with a checkpoint are always resumed)")
+    args = parser.parse_args(argv)
+    if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
+        raise ValueError("fast mode writes smoke results: pass --results elsewhere")
+    path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
+    cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
+    summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
+               "preset": "fast", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
+               "per_seed": [], "command": command_line("benchmarks/curriculum_runs.py", argv),
+               "machine": {**machine_info(), "torch_threads": torch.get_num_threads()}, "fast_mode": fast_mode(),
+               "jobs": args.jobs}
+    with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for row in pool.map(run_seed, cfgs) if args.jobs > 1 else map(run_seed, cfgs):
+            summary["per_seed"].append(row)
+            for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
+                summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
+            write_json(path, summary)
+            print(f"seed {row['seed']}: {row['frames']} frames, seen {row['seen_success']:.2f}, "
+                  f"unseen {row['unseen_success']:.2f} -> {path}")
+    return summary
+
+
+if __name__ == "__main__":
+    main()

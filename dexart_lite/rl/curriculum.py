@@ -1,0 +1,325 @@
+"""Start-state curricula: the learner's episode begins where a guide (the scripted expert) has already been.
+
+At a reset a *guide* acts ``h`` steps in the env and the learner's episode begins in the state it left;
+the guide's steps never reach the learner's data (they happen inside ``GuidedStart.reset``), so every
+collected frame, and every frame counted, is the learner's. With ``h = 0`` the reset is the env's own.
+The guide is the task's scripted expert (privileged: it reads the simulator) or a trained checkpoint;
+either way it is used in training only, and the policy's observation is unchanged.
+
+Schedules (``SCHEDULES``):
+
+* ``none``: the env's own resets (DexArt).
+* ``uniform``: ``h ~ U[0, H]`` on a fresh reset seed (JSRL-Random, Uchendu et al. 2023).
+* ``reverse``: reverse forward curriculum (RFCL, Tao et al. 2024). ``demos`` demonstrations, each a
+  ``(reset seed, object)`` pair on which the guide succeeds at step ``L``, keep a start *frontier*,
+  first ``L - 1`` (one step before the guide's success). Starts are drawn at ``frontier + k`` with
+  ``k`` = 0..4 at probabilities 1/2, 1/4, 1/8, 1/16, 1/16; after ``successes`` successes in a row from
+  exactly the frontier it moves back by ``step`` (never below 0). A fraction ``true_resets`` of the
+  episodes start from the true reset, and once 90 % of the frontiers have reached 0 every episode does.
+
+Where the state lives: the schedule (``Curriculum``: frontiers, streaks, counts) lives in the trainer and
+is saved in its checkpoint; the workers' wrappers hold only a copy of its ``level()`` (a plain dict), set
+with gymnasium's ``set_wrapper_attr`` (``send_level``) after every batch. A worker reports each
+episode's start in its info (``start_step``, ``start_demo``), so the trainer reads from the batch which
+episodes started where and whether they succeeded (``Curriculum.update``).
+
+    env = GuidedStart(gym.make("DexArtLite/Laptop-v0"), level={"schedule": "uniform", "horizon": 130})
+    obs, info = env.reset(seed=0)     # info["start_step"]: the guide's steps before this observation
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+
+from dexart_lite.utils import check_choice
+
+SCHEDULES = ("none", "uniform", "reverse")
+LEVEL_ATTR = "curriculum_level"  # the wrapper attribute the trainer sets on every worker
+# RFCL's start offsets past the frontier and their probabilities (rfcl/envs/wrappers/curriculum.py)
+OFFSET_PROBS = np.array([0.5, 0.25, 0.125, 0.0625, 0.0625])
+DONE_FRACTION = 0.9  # reverse: once this share of frontiers is at 0, every episode starts from the true reset
+
+
+def check_guide(guide: str) -> None:
+    """``guide`` is ``"expert"`` or the path of a checkpoint file (a PPO or distill run of the task)."""
+    from pathlib import Path
+
+    if guide != "expert" and not Path(guide).is_file():
+        raise ValueError(f"unknown guide {guide!r}: valid choices are 'expert' or the path of a checkpoint file")
+
+
+def make_guide(env: gym.Env, guide: str):
+    """``obs -> action`` of the guide acting in ``env``: the task's scripted expert or a checkpoint's
+    deterministic policy."""
+    check_guide(guide)
+    if guide == "expert":
+        from dexart_lite.experts import ScriptedPolicy, SynergyScriptedPolicy
+
+        return (SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy)(env)
+    from dexart_lite.rl.checkpoint import policy_function
+    from dexart_lite.rl.evaluate import load_policy
+
+    return policy_function(load_policy(guide)[0])
+
+
+class GuidedStart(gym.Wrapper):
+    """A gymnasium env whose resets hand over after ``h`` guide steps; ``h`` follows ``curriculum_level``.
+
+    ``level`` (``Curriculum.level()``): ``{"schedule": "none"}``, ``{"schedule": "uniform", "horizon": H}``
+    or ``{"schedule": "reverse", "demos": [(seed, object, L), ...], "frontiers": [...], "true_resets": p}``.
+    ``guide_render``: False skips the camera render on every guide step but the last (the physical state
+    is the same; the point cloud's random draws then differ from a plain run's, which renders every step).
+    The wrapper draws its episode seeds and starts from its own generator, seeded by ``reset(seed=...)``.
+    """
+
+    def __init__(self, env: gym.Env, level: dict | None = None, guide: str = "expert", guide_render: bool = True):
+        super().__init__(env)
+        check_guide(guide)
+        self.curriculum_level = level or {"schedule": "none"}
+        self.guide_name, self.guide_render = guide, guide_render
+        self._guide = None  # built on first use (the scripted expert reads the env's objects)
+        self._rng = np.random.default_rng()
+        self.guide_steps = 0  # guide steps taken so far (not the learner's frames)
+        self._start = (0, -1)  # (h, demo index or -1) of the current episode
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        level = self.curriculum_level
+        check_choice("schedule", level.get("schedule"), SCHEDULES)
+        if level["schedule"] == "none":  # exactly the env
+            return self._tagged(*self.env.reset(seed=seed, options=options), 0, -1)
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        episode_seed, name, h, demo = self._draw(level)
+        if options and "object" in options:  # an explicit object wins over the schedule's
+            name, demo = options["object"], -1
+        return self._guided_reset(episode_seed, name, h, demo)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info["start_step"], info["start_demo"] = self._start
+        return obs, reward, terminated, truncated, info
+
+    # ------------------------------------------------------------------ the start
+    def _draw(self, level: dict) -> tuple[int, str | None, int, int]:
+        """(episode seed, object or None, h, demo index or -1) of the next episode."""
+        rng = self._rng
+        if level["schedule"] == "uniform":
+            return int(rng.integers(2**31)), None, int(rng.integers(level["horizon"] + 1)), -1
+        frontiers = np.asarray(level["frontiers"])
+        if rng.random() < level["true_resets"] or np.mean(frontiers == 0) >= DONE_FRACTION:
+            return int(rng.integers(2**31)), None, 0, -1
+        weights = frontiers + 1.0  # RFCL: demos further from done are drawn more often
+        demo = int(rng.choice(len(frontiers), p=weights / weights.sum()))
+        seed, name, length = level["demos"][demo]
+        h = min(int(frontiers[demo]) + int(rng.choice(len(OFFSET_PROBS), p=OFFSET_PROBS)), length - 1)
+        return int(seed), name, h, demo
+
+    def _guided_reset(self, seed: int, name: str | None, h: int, demo: int):
+        """Reset with ``seed`` (and ``name``), let the guide act ``h`` steps, return the state it left.
+        A guide episode that ends first (success terminates it) is replayed to one step before its end."""
+        options = {"object": name} if name else None
+        obs, info = self.env.reset(seed=seed, options=options)
+        if self._guide is None and h > 0:
+            self._guide = make_guide(self.env, self.guide_name)
+        for t in range(h):
+            self._render(t == h - 1)
+            obs, _, terminated, truncated, info = self.env.step(self._guide(obs))
+            self.guide_steps += 1
+            if terminated or truncated:  # replay the same episode to its step t (the guide ended at t + 1)
+                self._render(True)
+                return self._guided_reset(seed, name, t, demo)
+        self._render(True)
+        return self._tagged(obs, info, h, demo)
+
+    def _render(self, on: bool) -> None:
+        self.env.unwrapped.observe_steps = on or self.guide_render
+
+    def _tagged(self, obs, info, h: int, demo: int):
+        self._start = (h, demo)
+        info["start_step"], info["start_demo"] = h, demo
+        return obs, info
+
+
+def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kwargs: dict | None = None,
+               guide: str = "expert", max_tries: int = 4) -> list[tuple[int, str, int]]:
+    """``count`` demonstrations of the guide, ``[(reset seed, object, L)]``: episodes on which it succeeds
+    at step ``L`` (the first success ends the episode). Objects in turn (the ``solve`` order: episode ``k``
+    of object ``i`` has seed ``seed + 1000 k + i``); an episode the guide fails is skipped. Run on the
+    state observation (no camera) and the task's full horizon: the physics, and so ``L``, does not depend on
+    what is observed."""
+    from dexart_lite import objects as objects_lib
+    from dexart_lite.envs import make
+    from dexart_lite.experts.solve import solve_episodes
+
+    # the full horizon (a short test horizon would cut the guide off before it succeeds)
+    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "max_episode_steps"}
+    if guide == "expert":
+        kwargs["observation"] = "state"
+    names = [o.name for o in objects_lib.list_objects(task, split)]
+    env = make(task, split=split, **kwargs)
+    policy = make_guide(env, guide)
+    demos = []
+    try:
+        for episode_seed, name in solve_episodes(names, max_tries * math.ceil(count / len(names)), seed):
+            obs, info = env.reset(seed=episode_seed, options={"object": name})
+            for t in range(env.unwrapped.horizon):
+                obs, _, terminated, truncated, info = env.step(policy(obs))
+                if terminated or truncated:
+                    break
+            if info["success"]:
+                demos.append((episode_seed, name, t + 1))
+            if len(demos) == count:
+                return demos
+    finally:
+        env.close()
+    raise RuntimeError(f"the {guide} guide succeeded on only {len(demos)} of the {count} {task} demonstrations "
+                       f"asked for in {max_tries * math.ceil(count / len(names)) * len(names)} episodes")
+
+
+@dataclass
+class CurriculumConfig:
+    """The schedule's settings (``PPOConfig`` carries them as ``curriculum_*`` fields)."""
+
+    schedule: str = "none"
+    horizon: int = 130  # uniform: the largest h
+    demos: int = 11  # reverse: demonstrations (one per seen object by default)
+    step: int = 5  # reverse: steps the frontier moves back
+    successes: int = 3  # reverse: successes in a row from the frontier before it moves
+    true_resets: float = 0.1  # reverse: share of episodes from the true reset
+    guide: str = "expert"
+
+    def validate(self) -> None:
+        check_choice("curriculum schedule", self.schedule, SCHEDULES)
+        check_guide(self.guide)
+        if self.horizon < 0:
+            raise ValueError(f"curriculum horizon H must be >= 0, got {self.horizon}")
+        for name in ("demos", "step", "successes"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"curriculum {name} must be >= 1, got {getattr(self, name)}")
+        if not 0.0 <= self.true_resets <= 1.0:
+            raise ValueError(f"curriculum true_resets is a fraction in [0, 1], got {self.true_resets}")
+
+
+class Curriculum:
+    """The schedule's state, kept by the trainer: frontiers, streaks and what the episodes did.
+
+    ``level()`` is what the workers need; ``update(batch)`` reads a collected batch's finished episodes
+    (``start_step``, ``start_demo``, ``episode_success`` at their last step) and moves the frontiers;
+    ``state_dict()`` / ``load_state_dict()`` carry it across ``--resume``."""
+
+    def __init__(self, cfg: CurriculumConfig, demos: list[tuple[int, str, int]] | None = None):
+        cfg.validate()
+        if cfg.schedule == "reverse" and not demos:
+            raise ValueError("the reverse schedule needs demonstrations (find_demos)")
+        self.cfg, self.demos = cfg, [tuple(d) for d in (demos or [])]
+        self.frontiers = np.array([length - 1 for _, _, length in self.demos], dtype=np.int64)
+        self.streaks = np.zeros(len(self.demos), dtype=np.int64)
+
+    def level(self) -> dict:
+        if self.cfg.schedule == "uniform":
+            return {"schedule": "uniform", "horizon": self.cfg.horizon}
+        if self.cfg.schedule == "reverse":
+            return {"schedule": "reverse", "demos": self.demos, "frontiers": self.frontiers.tolist(),
+                    "true_resets": self.cfg.true_resets}
+        return {"schedule": "none"}
+
+    def update(self, data) -> dict:
+        """Move the frontiers on the episodes that ended in ``data`` (a collector batch); statistics to log."""
+        done = data["next", "done"].squeeze(-1)
+        starts = data["next", "start_step"][done].tolist()
+        demos = data["next", "start_demo"][done].tolist()
+        success = data["next", "episode_success"][done].tolist()
+        # episodes from exactly their demo's frontier (as it was when they started)
+        at_frontier = [d >= 0 and self.cfg.schedule == "reverse" and h == self.frontiers[d] for h, d in zip(starts, demos)]
+        for demo, ok, counts in zip(demos, success, at_frontier):
+            if not counts:
+                continue
+            self.streaks[demo] = self.streaks[demo] + 1 if ok else 0
+            if self.streaks[demo] >= self.cfg.successes:
+                self.frontiers[demo] = max(0, self.frontiers[demo] - self.cfg.step)
+                self.streaks[demo] = 0
+        return self.stats(starts, success, at_frontier)
+
+    def stats(self, starts: list, success: list, at_frontier: list) -> dict:
+        """Mean h and the guide steps of the ended episodes, success of those that started at h = 0, and for
+        ``reverse`` the frontiers and the success of the episodes that started at their frontier."""
+        def rate(mask):
+            chosen = [ok for ok, m in zip(success, mask) if m]
+            return float(np.mean(chosen)) if chosen else math.nan
+
+        row = {"start_mean": float(np.mean(starts)) if starts else math.nan, "guide_steps": int(sum(starts)),
+               "success_h0": rate([h == 0 for h in starts]), "episodes_h0": sum(h == 0 for h in starts)}
+        if self.cfg.schedule == "reverse":
+            row.update({"frontier_mean": float(self.frontiers.mean()), "frontier_max": int(self.frontiers.max()),
+                        "reversed_frac": float(np.mean(self.frontiers == 0)), "success_frontier": rate(at_frontier),
+                        "episodes_frontier": sum(at_frontier)})
+        return row
+
+    def state_dict(self) -> dict:
+        return {"config": vars(self.cfg).copy(), "demos": self.demos, "frontiers": self.frontiers.tolist(),
+                "streaks": self.streaks.tolist()}
+
+    def load_state_dict(self, state: dict) -> None:
+        if state["config"] != vars(self.cfg) or [tuple(d) for d in state["demos"]] != self.demos:
+            raise ValueError(f"--resume: the checkpoint's curriculum {state['config']} does not match this run's "
+                             f"{vars(self.cfg)}")
+        self.frontiers = np.array(state["frontiers"], dtype=np.int64)
+        self.streaks = np.array(state["streaks"], dtype=np.int64)
+
+
+def send_level(collector, level: dict) -> None:
+    """Hand ``level`` to the wrapper of every env of ``collector`` (a torchrl ``Collector`` or
+    ``MultiSyncCollector``); each uses it from its next reset."""
+    if hasattr(collector, "num_workers"):  # a MultiSyncCollector: one call per worker process
+        collector.map_fn("env.set_wrapper_attr", list_of_args=[(LEVEL_ATTR, level)] * collector.num_workers)
+    else:
+        collector.env.set_wrapper_attr(LEVEL_ATTR, level)
+
+
+def read_levels(collector) -> list[dict]:
+    """Each worker's current level (for tests and logs)."""
+    if hasattr(collector, "num_workers"):
+        return collector.map_fn("env.get_wrapper_attr", list_of_args=[(LEVEL_ATTR,)] * collector.num_workers)
+    return [collector.env.get_wrapper_attr(LEVEL_ATTR)]
+
+
+__all__ = ["Curriculum", "CurriculumConfig", "GuidedStart", "SCHEDULES", "find_demos", "read_levels", "send_level"]
+
+
+def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int,
+                env_kwargs: dict | None = None, guide: str = "expert"):
+    """Demonstrations of the guide in the learner's observation, in memory: a ``TensorDict`` of ``S`` steps
+    with ``observation`` (S, D), ``point_cloud`` (S, N, 3) unless the observation is the state alone, and
+    ``expert_action`` (S, A), the clean label. The executed action is the label plus Gaussian noise of std
+    ``noise`` (clipped), so the labels also cover states just off the guide's path (DART). Episode ``k`` of
+    object ``i`` is reset with seed ``seed + 1000 k + i`` (the ``solve`` order) and the noise has its own
+    generator seeded with ``seed``: the same arguments give the same samples."""
+    from tensordict import TensorDict
+
+    from dexart_lite import objects as objects_lib
+    from dexart_lite.envs import make
+    from dexart_lite.experts.solve import solve_episodes
+    from dexart_lite.rollout import noisy, run_episodes
+
+    names = [o.name for o in objects_lib.list_objects(task, split)]
+    env = make(task, split=split, **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
+    policy = noisy(make_guide(env, guide), noise, np.random.default_rng(seed))
+    rows = []
+    try:
+        episodes = run_episodes(policy, env, solve_episodes(names, episodes_per_object, seed),
+                                on_step=lambda obs, *_: rows.append((obs, policy.label)))
+    finally:
+        env.close()
+    data = {"observation": np.stack([o["state"] for o, _ in rows]).astype(np.float32),
+            "expert_action": np.stack([a for _, a in rows]).astype(np.float32)}
+    if "point_cloud" in rows[0][0]:
+        data["point_cloud"] = np.stack([o["point_cloud"] for o, _ in rows]).astype(np.float32)
+    import torch
+
+    samples = TensorDict({k: torch.from_numpy(v) for k, v in data.items()}, batch_size=[len(rows)])
+    return samples, float(np.mean([e["success"] for e in episodes]))

@@ -323,8 +323,9 @@ class DexArtEnv(gym.Env):
         self._state = state
         if self.observe_steps or self.observation == "state":
             self._obs = self._observe(state, info)
-        else:  # a guide step whose observation nobody reads (rl/curriculum.py): no camera render
-            info["point_labels"] = self._labels
+        else:  # a guide step whose observation nobody reads (rl/curriculum.py): no camera render, the last
+            self._obs = {k: v.copy() for k, v in self._obs.items()}  # observation again (new arrays)
+            info["point_labels"] = self._labels = self._labels.copy()
         reward = float(sum(info["reward_terms"].values()))
         return self._obs, reward, bool(info["success"] and self.TERMINATE_ON_SUCCESS), False, info
 

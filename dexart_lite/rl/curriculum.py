@@ -97,7 +97,7 @@ class GuidedStart(gym.Wrapper):
         episode_seed, name, h, demo = self._draw(level)
         if options and "object" in options:  # an explicit object wins over the schedule's
             name, demo = options["object"], -1
-        return self._guided_reset(episode_seed, name, h, demo)
+        return self.start(episode_seed, h, name, demo)
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
@@ -119,9 +119,10 @@ class GuidedStart(gym.Wrapper):
         h = min(int(frontiers[demo]) + int(rng.choice(len(OFFSET_PROBS), p=OFFSET_PROBS)), length - 1)
         return int(seed), name, h, demo
 
-    def _guided_reset(self, seed: int, name: str | None, h: int, demo: int):
-        """Reset with ``seed`` (and ``name``), let the guide act ``h`` steps, return the state it left.
-        A guide episode that ends first (success terminates it) is replayed to one step before its end."""
+    def start(self, seed: int, h: int, name: str | None = None, demo: int = -1):
+        """``(obs, info)`` of the state the guide leaves after ``h`` steps from ``reset(seed)`` (on object
+        ``name`` if given); ``h = 0`` is that reset itself. A guide episode that ends first (success
+        terminates it) is replayed to one step before its end, and ``info["start_step"]`` says so."""
         options = {"object": name} if name else None
         obs, info = self.env.reset(seed=seed, options=options)
         if self._guide is None and h > 0:
@@ -132,7 +133,7 @@ class GuidedStart(gym.Wrapper):
             self.guide_steps += 1
             if terminated or truncated:  # replay the same episode to its step t (the guide ended at t + 1)
                 self._render(True)
-                return self._guided_reset(seed, name, t, demo)
+                return self.start(seed, t, name, demo)
         self._render(True)
         return self._tagged(obs, info, h, demo)
 
@@ -152,7 +153,6 @@ def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kw
     of object ``i`` has seed ``seed + 1000 k + i``); an episode the guide fails is skipped. Run on the
     state observation (no camera) and the task's full horizon: the physics, and so ``L``, does not depend on
     what is observed."""
-    from dexart_lite import objects as objects_lib
     from dexart_lite.envs import make
     from dexart_lite.experts.solve import solve_episodes
 
@@ -160,8 +160,8 @@ def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kw
     kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "max_episode_steps"}
     if guide == "expert":
         kwargs["observation"] = "state"
-    names = [o.name for o in objects_lib.list_objects(task, split)]
     env = make(task, split=split, **kwargs)
+    names = env.unwrapped.objects.names  # the split's, or the env_kwargs' object_names
     policy = make_guide(env, guide)
     demos = []
     try:
@@ -301,13 +301,12 @@ def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, s
     generator seeded with ``seed``: the same arguments give the same samples."""
     from tensordict import TensorDict
 
-    from dexart_lite import objects as objects_lib
     from dexart_lite.envs import make
     from dexart_lite.experts.solve import solve_episodes
     from dexart_lite.rollout import noisy, run_episodes
 
-    names = [o.name for o in objects_lib.list_objects(task, split)]
     env = make(task, split=split, **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
+    names = env.unwrapped.objects.names  # the split's, or the env_kwargs' object_names
     policy = noisy(make_guide(env, guide), noise, np.random.default_rng(seed))
     rows = []
     try:

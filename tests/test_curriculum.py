@@ -1,0 +1,227 @@
+"""Contracts of the start-state curriculum (rl/curriculum.py) and of its use in PPO (rl/ppo.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import partial
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+
+from dexart_lite.envs import make
+from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.rl import ppo
+from dexart_lite.rl.curriculum import (Curriculum, CurriculumConfig, GuidedStart, find_demos, guide_demos, read_levels,
+                                       send_level)
+from dexart_lite.registration import HORIZON
+from dexart_lite.rl.env import make_env
+
+STATE = dict(observation="state")
+CLOUD = dict(num_points=32)
+
+
+def plain_run(kwargs: dict, seed: int, h: int, name: str | None = None) -> dict:
+    """The observation after ``h`` expert steps of a plain env reset with ``seed``."""
+    env = make("laptop", **kwargs)
+    expert = ScriptedPolicy(env)
+    obs, _ = env.reset(seed=seed, options={"object": name} if name else None)
+    for _ in range(h):
+        obs, *_ = env.step(expert(obs))
+    env.close()
+    return obs
+
+
+def same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+@pytest.mark.parametrize("kwargs", [STATE, CLOUD], ids=["state", "cloud"])
+def test_h0_is_exactly_the_envs_own_reset(kwargs):
+    plain = make("laptop", **kwargs)
+    expected, info = plain.reset(seed=7)
+    for level in ({"schedule": "none"}, {"schedule": "uniform", "horizon": 0}):
+        env = GuidedStart(make("laptop", **kwargs), level)
+        obs, got = env.start(7, 0) if level["schedule"] == "uniform" else env.reset(seed=7)
+        assert same(obs, expected) and got["start_step"] == 0 and got["start_demo"] == -1
+        assert got["object_name"] == info["object_name"] and env.guide_steps == 0
+        # and the next steps are the env's too
+        action = np.full(22, 0.3)
+        assert same(env.step(action)[0], plain.step(action)[0])
+        plain.reset(seed=7)
+
+
+@pytest.mark.parametrize("kwargs", [STATE, CLOUD], ids=["state", "cloud"])
+def test_first_observation_is_the_experts_after_h_steps_of_a_plain_run(kwargs):
+    env = GuidedStart(make("laptop", **kwargs), {"schedule": "uniform", "horizon": 40}, guide_render=True)
+    obs, info = env.start(3, 25)
+    assert info["start_step"] == 25 and env.guide_steps == 25
+    assert same(obs, plain_run(kwargs, 3, 25))
+    assert env.unwrapped._t == 25  # the learner's episode goes on from the guide's step (its t / T included)
+
+
+def test_skipping_the_guides_renders_keeps_the_physical_state():
+    skip = GuidedStart(make("laptop", **CLOUD), {"schedule": "uniform", "horizon": 40}, guide_render=False)
+    full = GuidedStart(make("laptop", **CLOUD), {"schedule": "uniform", "horizon": 40}, guide_render=True)
+    a, b = skip.start(5, 30)[0], full.start(5, 30)[0]
+    assert np.array_equal(a["state"], b["state"])  # same joints, palm, time
+    assert a["point_cloud"].shape == b["point_cloud"].shape
+    assert skip.unwrapped.observe_steps  # the learner's own steps observe again
+
+
+def test_a_guide_that_succeeds_before_h_hands_over_one_step_before_its_success():
+    (seed, name, length), = find_demos("laptop", 1, env_kwargs=STATE)
+    env = GuidedStart(make("laptop", **STATE), {"schedule": "uniform", "horizon": 250})
+    obs, info = env.start(seed, 249, name)
+    assert info["start_step"] == length - 1 and not info["success"]
+    assert same(obs, plain_run(STATE, seed, length - 1, name))
+
+
+def test_no_guide_step_is_collected_and_frames_count_the_learner_only():
+    from torchrl.collectors import Collector
+
+    from dexart_lite.models.actor_critic import Acting, make_actor_critic
+
+    env = make_env("laptop", seed=0, level={"schedule": "uniform", "horizon": 15}, max_episode_steps=20, **STATE)
+    policy = Acting(make_actor_critic(env.observation_spec["observation"].shape[-1], 22, "none"))
+    collector = Collector(env, policy, frames_per_batch=60, total_frames=60)
+    data = next(iter(collector))
+    collector.shutdown()
+    assert data.numel() == 60  # frames asked for = learner steps collected
+    starts, counts = data["start_step"], data["step_count"].squeeze(-1)
+    first = data["is_init"].squeeze(-1)
+    assert (starts[first] > 0).any()  # guided episodes were collected ...
+    # ... from the guide's last state on: the first collected observation's t / T is h / T, never earlier
+    assert torch.allclose(data["observation"][first][:, 31], starts[first] / HORIZON)  # the time entry, t / 250
+    assert (counts[first] == 0).all() and (starts + counts <= 20).all()  # no guide step in the episode
+
+
+def test_a_level_set_by_the_trainer_reaches_every_worker_of_a_2_worker_collector():
+    from torchrl.collectors import MultiSyncCollector
+
+    from dexart_lite.models.actor_critic import Acting, make_actor_critic
+
+    fns = [partial(make_env, "laptop", seed=i, max_episode_steps=90, **STATE) for i in range(2)]
+    policy = Acting(make_actor_critic(47, 22, "none"))
+    collector = MultiSyncCollector(fns, policy, frames_per_batch=200, total_frames=200)
+    try:
+        level = {"schedule": "reverse", "demos": [(1, "laptop_11cbb00f39", 120)], "frontiers": [77],
+                 "true_resets": 0.0}
+        assert read_levels(collector) == [{"schedule": "none"}] * 2
+        send_level(collector, level)
+        assert read_levels(collector) == [level, level]
+        # the episode under way ends at step 90; each worker's next one starts at the frontier, 77 (+0..4)
+        data = next(iter(collector))
+        later = data["step_count"].squeeze(-1) < torch.arange(100)  # steps after the first reset
+        assert ((data["start_step"] >= 77) & (data["start_step"] <= 81) | ~later).all()
+        assert later[:, -1].all()  # both workers reached their second episode
+    finally:
+        collector.shutdown()
+
+
+def batch(starts, demos, success) -> TensorDict:
+    """A collector-like batch of one-step episodes: every step ends one."""
+    n = len(starts)
+    return TensorDict({"next": {"done": torch.ones(n, 1, dtype=torch.bool),
+                                "start_step": torch.tensor(starts), "start_demo": torch.tensor(demos),
+                                "episode_success": torch.tensor(success)}}, batch_size=[n])
+
+
+def test_a_reverse_frontier_moves_back_after_k_successes_in_a_row_and_never_below_0():
+    cfg = CurriculumConfig("reverse", demos=2, step=5, successes=3)
+    cur = Curriculum(cfg, [(0, "a", 12), (1, "b", 30)])
+    assert cur.frontiers.tolist() == [11, 29]  # one step before the guide's success
+    cur.update(batch([11, 11], [0, 0], [True, True]))
+    assert cur.frontiers.tolist() == [11, 29]  # 2 < k
+    cur.update(batch([13, 11], [0, 0], [True, False]))  # a start past the frontier does not count; a failure resets
+    assert cur.frontiers.tolist() == [11, 29] and cur.streaks.tolist() == [0, 0]
+    stats = cur.update(batch([11, 11, 11, 0], [0, 0, 0, -1], [True, True, True, False]))
+    assert cur.frontiers.tolist() == [6, 29]
+    assert stats["success_frontier"] == 1.0 and stats["success_h0"] == 0.0 and stats["episodes_h0"] == 1
+    for _ in range(2):
+        cur.update(batch([int(cur.frontiers[0])] * 3, [0] * 3, [True] * 3))
+    assert cur.frontiers.tolist() == [0, 29]  # 6 -> 1 -> 0, not -4
+
+
+def test_reverse_starts_are_drawn_just_after_the_frontier_and_true_resets_at_their_rate():
+    level = {"schedule": "reverse", "demos": [(0, "laptop_11cbb00f39", 200)], "frontiers": [100],
+             "true_resets": 0.25}
+    env = GuidedStart(make("laptop", **STATE), level)
+    env.reset(seed=0)
+    draws = [env._draw(level) for _ in range(2000)]
+    h = np.array([d[2] for d in draws])
+    assert set(h) <= {0, 100, 101, 102, 103, 104}
+    assert abs(np.mean(h == 0) - 0.25) < 0.04 and abs(np.mean(h == 100) - 0.75 * 0.5) < 0.04
+    done = dict(level, frontiers=[0])  # every frontier at 0: the true reset only
+    assert all(env._draw(done)[3] == -1 for _ in range(50))
+
+
+def test_the_curriculum_state_round_trips_and_refuses_another_runs():
+    cur = Curriculum(CurriculumConfig("reverse", demos=2), [(0, "a", 12), (1, "b", 30)])
+    cur.update(batch([11] * 3, [0] * 3, [True] * 3))
+    again = Curriculum(CurriculumConfig("reverse", demos=2), [(0, "a", 12), (1, "b", 30)])
+    again.load_state_dict(cur.state_dict())
+    assert again.frontiers.tolist() == cur.frontiers.tolist() == [6, 29]
+    other = Curriculum(CurriculumConfig("reverse", demos=2, step=8), [(0, "a", 12), (1, "b", 30)])
+    with pytest.raises(ValueError, match="does not match"):
+        other.load_state_dict(cur.state_dict())
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("schedule", "backwards", "valid choices"), ("guide", "oracle", "valid choices"), ("horizon", -1, "H must be"),
+    ("true_resets", 1.5, r"fraction in \[0, 1\]"), ("true_resets", -0.1, r"fraction in \[0, 1\]"),
+    ("step", 0, "step must be >= 1")])
+def test_bad_curriculum_values_name_the_valid_ones(field, value, message):
+    with pytest.raises(ValueError, match=message):
+        CurriculumConfig(**{field: value}).validate()
+
+
+def test_bad_curriculum_values_are_rejected_by_ppo_before_anything_starts(tmp_path):
+    for overrides, message in [({"curriculum": "sideways"}, "valid choices"),
+                               ({"curriculum_true_resets": 2.0}, "fraction"),
+                               ({"curriculum": "uniform", "backend": "distributed"}, "process backend"),
+                               ({"bc_warmstart": 5}, "needs --demo-episodes")]:
+        with pytest.raises(ValueError, match=message):
+            ppo.open_run(dataclasses.replace(ppo.PPOConfig(), out=str(tmp_path / "x"), **overrides))
+
+
+def test_guide_demonstrations_are_labelled_by_the_clean_expert_and_reproducible():
+    a, success = guide_demos("laptop", "seen", 1, 0.1, 3, {**STATE, "object_names": ["laptop_11cbb00f39"]})
+    b, _ = guide_demos("laptop", "seen", 1, 0.1, 3, {**STATE, "object_names": ["laptop_11cbb00f39"]})
+    assert set(a.keys()) == {"observation", "expert_action"} and success == 1.0
+    assert torch.equal(a["observation"], b["observation"]) and torch.equal(a["expert_action"], b["expert_action"])
+    # the first label is the expert's action on the reset observation of the same seed
+    env = make("laptop", split="seen", object_names=["laptop_11cbb00f39"], point_noise=True, camera_noise=True, **STATE)
+    obs, _ = env.reset(seed=3, options={"object": "laptop_11cbb00f39"})
+    assert np.allclose(a["expert_action"][0].numpy(), ScriptedPolicy(env)(obs), atol=1e-6)
+
+
+def test_bc_warmstart_fits_the_demonstrations():
+    from dexart_lite.models.actor_critic import make_actor_critic
+
+    samples, _ = guide_demos("laptop", "seen", 1, 0.1, 0, {**STATE, "object_names": ["laptop_11cbb00f39"]})
+    torch.manual_seed(0)
+    net = make_actor_critic(samples["observation"].shape[-1], 22, "none", normalize=True)
+    losses = ppo.bc_warmstart(net, samples, epochs=8, seed=0)
+    assert losses[-1] < 0.5 * losses[0]
+
+
+def test_a_curriculum_run_saves_and_resumes_its_schedule(tmp_path):
+    cfg = dataclasses.replace(
+        ppo.PPOConfig(), task="laptop", obs="state", workers=1, frames_per_batch=100, minibatch=100, epochs=1,
+        frames=100, max_episode_steps=250, eval_episodes=0, progress=False, curriculum="reverse",
+        curriculum_demos=2, demo_episodes=1, bc_warmstart=1, out=str(tmp_path / "run"),
+        split="seen_half")
+    first = ppo.train(cfg)
+    saved = torch.load(tmp_path / "run" / ppo.CHECKPOINT, weights_only=False)["curriculum"]
+    assert first["frames"] == 100 and first["demos"]["frames"] > 0
+    assert len(saved["frontiers"]) == 2 and "start_mean" in first["history"][0]
+    saved["frontiers"] = [3, 4]  # as if the run had walked them back: the resumed run must start from these
+    payload = torch.load(tmp_path / "run" / ppo.CHECKPOINT, weights_only=False)
+    payload["curriculum"] = saved
+    torch.save(payload, tmp_path / "run" / ppo.CHECKPOINT)
+    second = ppo.train(dataclasses.replace(cfg, frames=200, resume=True))
+    assert second["frames"] == 200
+    resumed = torch.load(tmp_path / "run" / ppo.CHECKPOINT, weights_only=False)["curriculum"]
+    assert all(f <= s for f, s in zip(resumed["frontiers"], [3, 4]))

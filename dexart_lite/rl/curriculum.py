@@ -235,7 +235,8 @@ class Curriculum:
         demos = data["next", "start_demo"][done].tolist()
         success = data["next", "episode_success"][done].tolist()
         # episodes from exactly their demo's frontier (as it was when they started)
-        at_frontier = [d >= 0 and self.cfg.schedule == "reverse" and h == self.frontiers[d] for h, d in zip(starts, demos)]
+        at_frontier = [bool(d >= 0 and self.cfg.schedule == "reverse" and h == self.frontiers[d])
+                       for h, d in zip(starts, demos)]
         for demo, ok, counts in zip(demos, success, at_frontier):
             if not counts:
                 continue
@@ -253,11 +254,11 @@ class Curriculum:
             return float(np.mean(chosen)) if chosen else math.nan
 
         row = {"start_mean": float(np.mean(starts)) if starts else math.nan, "guide_steps": int(sum(starts)),
-               "success_h0": rate([h == 0 for h in starts]), "episodes_h0": sum(h == 0 for h in starts)}
+               "success_h0": rate([h == 0 for h in starts]), "episodes_h0": int(sum(h == 0 for h in starts))}
         if self.cfg.schedule == "reverse":
             row.update({"frontier_mean": float(self.frontiers.mean()), "frontier_max": int(self.frontiers.max()),
                         "reversed_frac": float(np.mean(self.frontiers == 0)), "success_frontier": rate(at_frontier),
-                        "episodes_frontier": sum(at_frontier)})
+                        "episodes_frontier": int(sum(at_frontier))})
         return row
 
     def state_dict(self) -> dict:

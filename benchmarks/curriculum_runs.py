@@ -55,6 +55,11 @@ RECIPES = {
     "reverse_bc": {**DEMO, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
     "uniform_bc": {**DEMO, "curriculum": "uniform", "curriculum_horizon": 130},
     "bc_guarded": dict(GUARDED),
+    # dagger: the guarded recipe from a better-cloned policy: after the BC warm start, 3 DAgger rounds in which
+    # the cloned policy drives 4 episodes per object and the expert labels what it visits (their steps count
+    # as demonstration frames, not online frames)
+    "reverse_dagger": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "curriculum": "reverse",
+                       "curriculum_demos": 11, "curriculum_step": 5},
     "reverse_guarded": {**GUARDED, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
 CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean", "wall_s")

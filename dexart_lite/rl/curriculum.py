@@ -292,14 +292,31 @@ def read_levels(collector) -> list[dict]:
 __all__ = ["Curriculum", "CurriculumConfig", "GuidedStart", "SCHEDULES", "find_demos", "read_levels", "send_level"]
 
 
+class Driven:
+    """DAgger's executed policy: ``driver``'s action is executed, ``guide``'s (called on every step, so a
+    stateful expert follows the episode) is kept as ``label``."""
+
+    def __init__(self, guide, driver):
+        self.guide, self.driver, self.label = guide, driver, None
+
+    def reset(self) -> None:
+        if hasattr(self.guide, "reset"):
+            self.guide.reset()
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        self.label = np.asarray(self.guide(obs), dtype=np.float64)
+        return self.driver(obs)
+
+
 def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int,
-                env_kwargs: dict | None = None, guide: str = "expert"):
+                env_kwargs: dict | None = None, guide: str = "expert", driver=None):
     """Demonstrations of the guide in the learner's observation, in memory: a ``TensorDict`` of ``S`` steps
     with ``observation`` (S, D), ``point_cloud`` (S, N, 3) unless the observation is the state alone, and
     ``expert_action`` (S, A), the clean label. The executed action is the label plus Gaussian noise of std
     ``noise`` (clipped), so the labels also cover states just off the guide's path (DART). Episode ``k`` of
     object ``i`` is reset with seed ``seed + 1000 k + i`` (the ``solve`` order) and the noise has its own
-    generator seeded with ``seed``: the same arguments give the same samples."""
+    generator seeded with ``seed``: the same arguments give the same samples. ``driver`` (``obs -> action``, e.g.
+    the student being trained): it acts instead and the guide only labels the states it visits (DAgger)."""
     from tensordict import TensorDict
 
     from dexart_lite.envs import make
@@ -308,7 +325,8 @@ def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, s
 
     env = make(task, split=split, **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
     names = env.unwrapped.objects.names  # the split's, or the env_kwargs' object_names
-    policy = noisy(make_guide(env, guide), noise, np.random.default_rng(seed))
+    policy = noisy(make_guide(env, guide), noise, np.random.default_rng(seed)) if driver is None else \
+        Driven(make_guide(env, guide), driver)
     rows = []
     try:
         episodes = run_episodes(policy, env, solve_episodes(names, episodes_per_object, seed),

@@ -46,7 +46,8 @@ from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_enc
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
 from dexart_lite.rl.curriculum import Curriculum, CurriculumConfig, find_demos, guide_demos, send_level
-from dexart_lite.rl.checkpoint import architecture, load_checkpoint, network_encoder, save_checkpoint
+from dexart_lite.rl.checkpoint import (architecture, load_checkpoint, network_encoder, policy_function,
+                                      save_checkpoint)
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
 from dexart_lite.utils import check_choice
@@ -127,6 +128,10 @@ class PPOConfig:
     bc_warmstart: int = field(default=0, metadata={"help": "epochs of behaviour cloning (MSE of the action mean "
                               "to the labels) on the --demo-episodes data before the first batch; the inputs are "
                               "normalised with the demonstrations' statistics. 0: off"})
+    dagger_rounds: int = field(default=0, metadata={"help": "after --bc-warmstart: rounds in which the cloned "
+                               "policy drives --demo-episodes episodes per object (deterministic actions), the "
+                               "guide labels every state, and the policy is cloned again on all the data (DAgger). "
+                               "Their steps count as demonstration frames. 0: off"})
     anchor_coef: float = field(default=0.0, metadata={"help": "weight of a KL penalty to the --init-from policy "
                                "on the batch's visited states, KL(pi || pi_init) summed over the action dims (as "
                                "RLHF's KL to the reference model); it keeps the fine-tuned policy near the student "
@@ -277,6 +282,9 @@ def validate(cfg: PPOConfig) -> None:
     if cfg.demo_episodes < 0 or cfg.bc_warmstart < 0 or not (math.isfinite(cfg.demo_noise) and cfg.demo_noise >= 0):
         raise ValueError(f"need demo_episodes >= 0, bc_warmstart >= 0 and a finite demo_noise >= 0, got "
                          f"{cfg.demo_episodes}, {cfg.bc_warmstart}, {cfg.demo_noise}")
+    if cfg.dagger_rounds < 0 or (cfg.dagger_rounds and not cfg.bc_warmstart):
+        raise ValueError(f"dagger_rounds must be >= 0 and needs --bc-warmstart (the epochs of each round), got "
+                         f"{cfg.dagger_rounds}")
     if cfg.bc_warmstart and not cfg.demo_episodes:
         raise ValueError("bc_warmstart needs --demo-episodes (the data it clones)")
     if cfg.demo_episodes and (cfg.bc_demos or cfg.obs_norm_steps or cfg.init_from):
@@ -433,11 +441,13 @@ class DetachedInput(torch.nn.Module):
         return self.net(x.detach())
 
 
-def bc_warmstart(actor_critic, samples, epochs: int, seed: int, lr: float = 1e-3, batch: int = 256) -> list[float]:
-    """Fix the trunk's input normalisation from ``samples`` (the demonstrations), then ``epochs`` passes of
-    Adam on the MSE of the action mean to ``samples["expert_action"]``; the mean loss of each epoch."""
-    points = samples.get(POINTS_KEY, None)
-    trunk_of(actor_critic).set_normalization(samples[STATE_KEY], points)
+def bc_warmstart(actor_critic, samples, epochs: int, seed: int, lr: float = 1e-3, batch: int = 256,
+                 renormalize: bool = True) -> list[float]:
+    """Fix the trunk's input normalisation from ``samples`` (the demonstrations; unless ``renormalize`` is
+    False), then ``epochs`` passes of Adam on the MSE of the action mean to ``samples["expert_action"]``;
+    the mean loss of each epoch."""
+    if renormalize:
+        trunk_of(actor_critic).set_normalization(samples[STATE_KEY], samples.get(POINTS_KEY, None))
     policy = actor_critic.get_policy_operator()
     params = [p for p in policy.parameters() if p.requires_grad]
     optimizer = torch.optim.Adam(params, lr=lr)
@@ -478,7 +488,16 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
         bc_data, demo_success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise,
                                             10_000 + cfg.seed, kwargs, cfg.guide)
         warm = bc_warmstart(actor_critic, bc_data, cfg.bc_warmstart, cfg.seed) if not cfg.resume else []
-        demo_info = {"frames": len(bc_data), "guide_success": demo_success, "warmstart_loss": warm}
+        demo_info = {"frames": len(bc_data), "guide_success": demo_success, "warmstart_loss": warm,
+                     "dagger_success": []}
+        for r in range(cfg.dagger_rounds if not cfg.resume else 0):  # the student drives, the guide labels
+            visited, success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, 0.0, 20_000 + 1000 * r + cfg.seed,
+                                           kwargs, cfg.guide, driver=policy_function(actor_critic))
+            bc_data = torch.cat([bc_data, visited])
+            demo_info["dagger_success"].append(success)  # the student's own success in this round
+            demo_info["warmstart_loss"] += bc_warmstart(actor_critic, bc_data, cfg.bc_warmstart, cfg.seed + 1 + r,
+                                                        renormalize=False)
+        demo_info["frames"] = len(bc_data)
     if weights is not None:  # strict: every weight of the student, the input normalisation included
         actor_critic.load_state_dict(weights, strict=True)
         set_action_log_std(actor_critic, cfg.init_log_std)  # the student's log-std was never trained (MSE)

@@ -1,0 +1,115 @@
+"""The tables of RL from the experts, generated from the committed JSON (never typed by hand).
+
+    python benchmarks/curriculum_table.py            # print both tables
+    python benchmarks/curriculum_table.py --write    # refresh them in docs/results/rl_from_experts.md and README.md
+
+Two tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
+
+* ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/curriculum/*.json`` run
+  set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success
+  from the true reset (mean ± std over the seeds, then each seed), training wall time per seed.
+* ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, each cell from its JSON
+  (``HEADLINE``), with DexArt's Table 2 (no pretraining) beside them.
+
+``tests/test_docs_tables.py`` fails when a table in a file differs from what this script generates.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "benchmarks" / "results"
+DOC = ROOT / "docs" / "results" / "rl_from_experts.md"
+README = ROOT / "README.md"
+PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (0.81, 0.41), "toilet": (0.71, 0.46)}
+# the evidence of each headline cell: expert (solve JSONs, seen and unseen), the best committed point-cloud student,
+# and the best committed RL run set on point clouds (None: none yet)
+HEADLINE = {
+    "faucet": {"student": "distill_faucet_episodes2x.json", "rl": None},
+    "bucket": {"student": "distill_bucket.json", "rl": None},
+    "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": None},
+    "toilet": {"student": "distill_toilet_episodes2x.json", "rl": None},
+}
+
+
+def load(path: Path) -> dict:
+    return json.loads(path.read_text())
+
+
+def spread(values: list[float]) -> str:
+    return f"{np.mean(values):.2f} ± {np.std(values):.2f}" if len(values) > 1 else f"{values[0]:.2f}"
+
+
+def runs_table() -> str:
+    rows = ["| task | obs | recipe | seeds | online frames / seed | demo frames / seed | seen success | "
+            "unseen success | training time / seed | JSON |", "|" + "---|" * 10]
+    for path in sorted((RESULTS / "curriculum").glob("*.json")):
+        result = load(path)
+        if "per_seed" not in result or not result["per_seed"]:
+            continue
+        seeds = result["per_seed"]
+        seen, unseen = [r["seen_success"] for r in seeds], [r["unseen_success"] for r in seeds]
+        frames = " / ".join(f"{r['frames'] / 1000:.0f}k" for r in seeds)
+        demo = " / ".join(f"{r['demo_frames'] / 1000:.1f}k" for r in seeds)
+        each = {name: " / ".join(f"{v:.2f}" for v in values) for name, values in (("seen", seen), ("unseen", unseen))}
+        minutes = " / ".join(f"{r['wall_time_s'] / 60:.0f} min" for r in seeds)
+        rows.append(f"| {result['task']} | {result['obs']} | `{result['recipe']}` | {len(seeds)} | {frames} | {demo} "
+                    f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) | {minutes} "
+                    f"| [{path.name}](../../benchmarks/results/curriculum/{path.name}) |")
+    return "\n".join(rows)
+
+
+def headline_table() -> str:
+    rows = ["| task | scripted expert (privileged) | distilled point-cloud student | RL on point clouds | "
+            "DexArt Table 2 (RL, no pretraining) |", "|---|---|---|---|---|"]
+    for task, cells in HEADLINE.items():
+        expert = [load(RESULTS / f"solve_{task}_{split}.json")["success_rate"] for split in ("seen", "unseen")]
+        student = load(RESULTS / cells["student"])
+        rl = load(RESULTS / "curriculum" / cells["rl"]) if cells["rl"] else None
+        rl_cell = (f"[{rl['seen_success']:.2f} / {rl['unseen_success']:.2f}](benchmarks/results/curriculum/{cells['rl']})"
+                   if rl else "not yet ([why](docs/results/rl_from_experts.md))")
+        rows.append(f"| {task} | [{expert[0]:.2f} / {expert[1]:.2f}](benchmarks/results/solve_{task}_seen.json) "
+                    f"| [{student['seen_success']:.2f} / {student['unseen_success']:.2f}](benchmarks/results/{cells['student']}) "
+                    f"| {rl_cell} | {PAPER_NO_PRETRAIN[task][0]:.2f} / {PAPER_NO_PRETRAIN[task][1]:.2f} |")
+    return "\n".join(rows)
+
+
+TABLES = {"curriculum-runs": (DOC, runs_table), "rl-headline": (README, headline_table)}
+
+
+def block(text: str, name: str) -> re.Match | None:
+    return re.search(rf"<!-- {name} -->\n(.*?)<!-- /{name} -->", text, flags=re.S)
+
+
+def stale_tables() -> list[str]:
+    """Names of the tables whose text in their file differs from the generated one (or is missing)."""
+    stale = []
+    for name, (path, make) in TABLES.items():
+        found = block(path.read_text(), name) if path.exists() else None
+        if found is None or found.group(1) != make() + "\n":
+            stale.append(name)
+    return stale
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="replace the tables in their files")
+    args = parser.parse_args(argv)
+    tables = {name: (path, make()) for name, (path, make) in TABLES.items()}
+    for name, (path, table) in tables.items():
+        print(f"{name} ({path}):\n{table}\n")
+        if args.write and block(path.read_text(), name) is None:  # checked for every file before any is written
+            raise ValueError(f"{path} has no <!-- {name} --> ... <!-- /{name} --> block to fill")
+    for name, (path, table) in tables.items() if args.write else ():
+        text = path.read_text()
+        path.write_text(text.replace(block(text, name).group(0), f"<!-- {name} -->\n{table}\n<!-- /{name} -->"))
+
+
+if __name__ == "__main__":
+    main()

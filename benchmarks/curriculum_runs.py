@@ -96,6 +96,9 @@ def run_seed(cfg: ppo.PPOConfig) -> dict:
             "wall_time_with_eval_s": round(result["wall_time_s"], 1), "resumed": resume,
             "demo_frames": (result["demos"] or {}).get("frames", 0),
             "guide_success": (result["demos"] or {}).get("guide_success"),
+            "dagger_success": (result["demos"] or {}).get("dagger_success"),
+            # the cloned policy before any PPO update (None for a resumed run: measured in its first invocation)
+            "warmstart_success": (result["demos"] or {}).get("warmstart_eval"),
             "curve": [{k: clean(row.get(k)) for k in CURVE_KEYS} for row in result["history"]]}
 
 

@@ -227,3 +227,16 @@ def test_a_curriculum_run_saves_and_resumes_its_schedule(tmp_path):
     assert second["frames"] == 200
     resumed = torch.load(tmp_path / "run" / ppo.CHECKPOINT, weights_only=False)["curriculum"]
     assert all(f <= s for f, s in zip(resumed["frontiers"], [3, 4]))
+
+
+def test_in_a_dagger_round_the_driver_acts_and_the_guide_labels_what_it_visits():
+    one = {**STATE, "object_names": ["laptop_11cbb00f39"], "max_episode_steps": 6}
+    samples, success = guide_demos("laptop", "seen", 1, 0.0, 3, one, driver=lambda obs: np.zeros(22))
+    env = make("laptop", split="seen", point_noise=True, camera_noise=True, **one)
+    expert = ScriptedPolicy(env)
+    obs, _ = env.reset(seed=3, options={"object": "laptop_11cbb00f39"})
+    for t in range(6):  # the driver's path (action 0), with the expert asked on every state of it
+        assert np.allclose(samples["observation"][t].numpy(), obs["state"])
+        assert np.allclose(samples["expert_action"][t].numpy(), expert(obs), atol=1e-6)
+        obs, *_ = env.step(np.zeros(22))
+    assert len(samples) == 6 and success == 0.0

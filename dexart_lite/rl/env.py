@@ -1,8 +1,10 @@
 """The torchrl view of a DexArt task: ``make_env(task, **kwargs)``.
 
-    GymWrapper(gym.make("DexArtLite/Laptop-v0", point_noise=True, camera_noise=True, ...))
-      + an info reader: success, stage, progress, episode_success, episode_max_stage
+    GymWrapper(EpisodeInfo(GuidedStart(gym.make("DexArtLite/Laptop-v0", point_noise=True, camera_noise=True, ...))))
+      + an info reader: success, stage, progress, episode_success, episode_max_stage, start_step, start_demo
       + InitTracker ("is_init"), StepCounter ("step_count"), RewardSum ("episode_reward")
+
+``GuidedStart`` (rl/curriculum.py) is the start-state curriculum: without a level it is the env's own reset.
 
 Tensordict keys of one step (``env.rollout`` / collector batches; ``N`` = 608 by default):
 
@@ -15,6 +17,8 @@ Tensordict keys of one step (``env.rollout`` / collector batches; ``N`` = 608 by
     ("next", "episode_success")  success at any step of the episode so far (DexArt's metric)
     ("next", "episode_max_stage") the highest stage reached so far
     ("next", "episode_reward") (1,) return so far
+    ("next", "start_step") int64 guide steps before the episode's first observation (rl/curriculum.py; 0: none)
+    ("next", "start_demo") int64 the reverse curriculum's demonstration it started from, or -1
 
 As in DexArt, training and evaluation both use point-cloud noise and camera-pose noise.
 ``make_env`` is a module-level function, so ``functools.partial(make_env, task, ...)`` can be sent to

@@ -541,6 +541,8 @@ def restore(learner: Learner, cfg: PPOConfig, path: Path, curriculum: Curriculum
                          f"run, not {cfg.encoder} {cfg.task}")
     learner.actor_critic.load_state_dict(state["model"], strict=True)
     learner.optimizer.load_state_dict(state["optimizer"])
+    if learner.demos is not None and state.get("demos"):  # what the first invocation measured of the warm start
+        learner.demos.update({k: v for k, v in state["demos"].items() if k != "frames"})
     return state["frames"], state["batches"], state["history"]
 
 
@@ -552,7 +554,7 @@ def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int
     return save_checkpoint(path, {
         "config": asdict(cfg), "model": learner.actor_critic.state_dict(), "optimizer": learner.optimizer.state_dict(),
         "frames": frames, "batches": batches, "history": history, "dims": learner.dims,
-        "curriculum": curriculum.state_dict() if curriculum is not None else None})
+        "curriculum": curriculum.state_dict() if curriculum is not None else None, "demos": learner.demos})
 
 
 def advantages(data, learner: Learner, reward_scale: float = 1.0):
@@ -694,6 +696,15 @@ def evaluate_and_report(cfg: PPOConfig, learner: Learner, history: list, start: 
             "wall_time_s": wall, "eval": {e["split"]: e for e in evals}}
 
 
+def warmstart_evaluation(cfg: PPOConfig, learner: Learner) -> dict:
+    """Success of the cloned policy before any PPO update, as the final evaluation measures it (seen and unseen
+    objects, from the true reset, deterministic): what the demonstrations alone give."""
+    from dexart_lite.rl.evaluate import evaluate
+
+    return {split: evaluate(learner.actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed,
+                            cfg.env_kwargs())["success_rate"] for split in ("seen", "unseen")}
+
+
 def train(cfg: PPOConfig) -> dict:
     """Train, evaluate on seen and unseen objects, write the report; returns the paths and results."""
     from torchrl.record.loggers import CSVLogger
@@ -710,6 +721,8 @@ def train(cfg: PPOConfig) -> dict:
     learner = build_learner(cfg, env_fn)
     curriculum = make_curriculum(cfg)  # the start-state schedule (None: true resets only); its state lives here
     frames_done, batches, history = restore(learner, cfg, ckpt_path, curriculum) if cfg.resume else (0, 0, [])
+    if learner.demos is not None and cfg.bc_warmstart and not cfg.resume and cfg.eval_episodes:
+        learner.demos["warmstart_eval"] = warmstart_evaluation(cfg, learner)  # the curve's frame 0
 
     # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass, ``Acting``).
     # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed

@@ -240,3 +240,26 @@ def test_in_a_dagger_round_the_driver_acts_and_the_guide_labels_what_it_visits()
         assert np.allclose(samples["expert_action"][t].numpy(), expert(obs), atol=1e-6)
         obs, *_ = env.step(np.zeros(22))
     assert len(samples) == 6 and success == 0.0
+
+
+def test_a_checkpoint_can_be_the_guide(tmp_path):
+    from dexart_lite.rl.env import make_env as torchrl_env
+
+    cfg = dataclasses.replace(ppo.PPOConfig(), task="laptop", obs="state", out=str(tmp_path / "run"))
+    learner = ppo.build_learner(cfg, partial(torchrl_env, "laptop", observation="state"))
+    path = ppo.save(learner, cfg, tmp_path / "guide.pt", frames=0, batches=0, history=[])
+    env = GuidedStart(make("laptop", **STATE), {"schedule": "uniform", "horizon": 10}, guide=str(path))
+    obs, info = env.start(4, 6)
+    plain = make("laptop", **STATE)
+    expected, _ = plain.reset(seed=4)
+    act = make_guide_policy(path)
+    for _ in range(6):  # the checkpoint's deterministic actions, replayed by hand
+        expected, *_ = plain.step(act(expected))
+    assert info["start_step"] == 6 and same(obs, expected)
+
+
+def make_guide_policy(path):
+    from dexart_lite.rl.checkpoint import policy_function
+    from dexart_lite.rl.evaluate import load_policy
+
+    return policy_function(load_policy(path)[0])

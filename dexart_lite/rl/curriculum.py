@@ -72,7 +72,8 @@ class GuidedStart(gym.Wrapper):
     ``level`` (``Curriculum.level()``): ``{"schedule": "none"}``, ``{"schedule": "uniform", "horizon": H}``
     or ``{"schedule": "reverse", "demos": [(seed, object, L), ...], "frontiers": [...], "true_resets": p}``.
     ``guide_render``: False skips the camera render on every guide step but the last (the physical state
-    is the same; the point cloud's random draws then differ from a plain run's, which renders every step).
+    is the same; the point cloud's random draws then differ from a plain run's, which renders every step);
+    a checkpoint guide, which acts on its observations, always renders.
     The wrapper draws its episode seeds and starts from its own generator, seeded by ``reset(seed=...)``.
     """
 
@@ -138,7 +139,8 @@ class GuidedStart(gym.Wrapper):
         return self._tagged(obs, info, h, demo)
 
     def _render(self, on: bool) -> None:
-        self.env.unwrapped.observe_steps = on or self.guide_render
+        # a checkpoint guide acts on what it observes: only the scripted expert (reading the simulator) can skip
+        self.env.unwrapped.observe_steps = on or self.guide_render or self.guide_name != "expert"
 
     def _tagged(self, obs, info, h: int, demo: int):
         self._start = (h, demo)

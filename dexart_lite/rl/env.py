@@ -76,6 +76,8 @@ class EpisodeInfo(gym.Wrapper):
 
     def _add(self, info: dict) -> dict:
         info["episode_success"], info["episode_max_stage"] = self._success, self._max_stage
+        info.setdefault("start_step", 0)  # without a GuidedStart below: the env's own reset
+        info.setdefault("start_demo", -1)
         for key, spec in INFO_SPECS.items():  # torchrl's default_info_dict_reader expects numpy values
             info[key] = np.asarray(info[key], dtype=NUMPY_DTYPES[spec.dtype])
         return info

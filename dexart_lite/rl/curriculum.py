@@ -60,10 +60,9 @@ def make_guide(env: gym.Env, guide: str):
         from dexart_lite.experts import ScriptedPolicy, SynergyScriptedPolicy
 
         return (SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy)(env)
-    from dexart_lite.rl.checkpoint import policy_function
-    from dexart_lite.rl.evaluate import load_policy
+    from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, policy_function
 
-    return policy_function(load_policy(guide)[0])
+    return policy_function(actor_critic_from_checkpoint(load_checkpoint(guide), guide))
 
 
 class GuidedStart(gym.Wrapper):

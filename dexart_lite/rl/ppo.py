@@ -465,6 +465,26 @@ def bc_warmstart(actor_critic, samples, epochs: int, seed: int, lr: float = 1e-3
     return losses
 
 
+def clone_the_guide(cfg: PPOConfig, actor_critic) -> tuple:
+    """(samples, info): the guide's demonstrations (``--demo-episodes``), the actor cloned on them
+    (``--bc-warmstart``) and ``--dagger-rounds`` in which the clone drives and the guide labels. A resumed run
+    collects the demonstrations again (same seeds, same data) for the BC term, but neither clones nor runs
+    the DAgger rounds again (its weights come from the checkpoint)."""
+    kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
+    samples, guide_success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise, 10_000 + cfg.seed,
+                                         kwargs, cfg.guide)
+    warm = bc_warmstart(actor_critic, samples, cfg.bc_warmstart, cfg.seed) if not cfg.resume else []
+    info = {"guide_success": guide_success, "warmstart_loss": warm, "dagger_success": []}
+    for r in range(cfg.dagger_rounds if not cfg.resume else 0):  # the student drives, the guide labels
+        visited, success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, 0.0, 20_000 + 1000 * r + cfg.seed,
+                                       kwargs, cfg.guide, driver=policy_function(actor_critic))
+        samples = torch.cat([samples, visited])
+        info["dagger_success"].append(success)  # the student's own success in this round
+        info["warmstart_loss"] += bc_warmstart(actor_critic, samples, cfg.bc_warmstart, cfg.seed + 1 + r,
+                                               renormalize=False)
+    return samples, {"frames": len(samples), **info}
+
+
 def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     """Actor-critic (from scratch, from ``--init-from``, or with a pretrained and optionally frozen PointNet),
     ClipPPOLoss, Adam and GAE."""
@@ -481,23 +501,9 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     actor_critic = make_actor_critic(state_dim, action_dim, network_encoder(asdict(cfg)), cfg.init_log_std, **arch)
     if cfg.obs_norm_steps and not cfg.resume:  # a resumed run loads the statistics with the weights
         init_normalization(actor_critic, env_fn, cfg.obs_norm_steps, cfg.seed)
-    bc_data = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 and cfg.bc_demos else None
-    demo_info = None
-    if cfg.demo_episodes:  # the guide's demonstrations (a resumed run collects them again: same seeds, same data)
-        kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
-        bc_data, demo_success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise,
-                                            10_000 + cfg.seed, kwargs, cfg.guide)
-        warm = bc_warmstart(actor_critic, bc_data, cfg.bc_warmstart, cfg.seed) if not cfg.resume else []
-        demo_info = {"frames": len(bc_data), "guide_success": demo_success, "warmstart_loss": warm,
-                     "dagger_success": []}
-        for r in range(cfg.dagger_rounds if not cfg.resume else 0):  # the student drives, the guide labels
-            visited, success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, 0.0, 20_000 + 1000 * r + cfg.seed,
-                                           kwargs, cfg.guide, driver=policy_function(actor_critic))
-            bc_data = torch.cat([bc_data, visited])
-            demo_info["dagger_success"].append(success)  # the student's own success in this round
-            demo_info["warmstart_loss"] += bc_warmstart(actor_critic, bc_data, cfg.bc_warmstart, cfg.seed + 1 + r,
-                                                        renormalize=False)
-        demo_info["frames"] = len(bc_data)
+    bc_data, demo_info = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 and cfg.bc_demos else None, None
+    if cfg.demo_episodes:
+        bc_data, demo_info = clone_the_guide(cfg, actor_critic)
     if weights is not None:  # strict: every weight of the student, the input normalisation included
         actor_critic.load_state_dict(weights, strict=True)
         set_action_log_std(actor_critic, cfg.init_log_std)  # the student's log-std was never trained (MSE)

@@ -86,6 +86,11 @@ class GuidedStart(gym.Wrapper):
         self.guide_steps = 0  # guide steps taken so far (not the learner's frames)
         self._start = (0, -1)  # (h, demo index or -1) of the current episode
 
+    @property
+    def guide(self):
+        """The guide policy (``obs -> action``) that led the current episode; None before its first step."""
+        return self._guide
+
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         level = self.curriculum_level

@@ -2,7 +2,7 @@
 
     python benchmarks/curriculum_runs.py --task laptop --obs state --recipe reverse_bc --seeds 0 1 --jobs 2 \
         --frames 1000000 --max-minutes 60
-    python benchmarks/curriculum_runs.py ... --resume      # continue interrupted runs from their checkpoints
+    python benchmarks/curriculum_runs.py ...               # again: a seed with a checkpoint in --runs is resumed
 
 Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<obs>_<recipe>_s<seed>`` (with
 ``--jobs 2`` two seeds train at once, one collector process each). Written, after every finished seed, to
@@ -22,6 +22,7 @@ which read the simulator: they are used in training only; the policy observes wh
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import multiprocessing
@@ -76,6 +77,11 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> pp
     return ppo.preset("fast", **overrides)
 
 
+def no_nan(value):
+    """JSON has no NaN: a statistic of no episode (NaN in the log) is written as null."""
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
 def training_seconds(history: list[dict]) -> float:
     """Training wall time over every invocation of a run: ``wall_s`` restarts at each ``--resume``."""
     ends = [a["wall_s"] for a, b in zip(history, history[1:]) if b["wall_s"] < a["wall_s"]]
@@ -85,8 +91,7 @@ def training_seconds(history: list[dict]) -> float:
 def run_seed(cfg: ppo.PPOConfig) -> dict:
     """Train (or resume) one seed; its row of ``per_seed``."""
     resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
-    result = ppo.train(ppo.dataclasses.replace(cfg, resume=resume))
-    clean = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731 (JSON has no NaN)
+    result = ppo.train(dataclasses.replace(cfg, resume=resume))
     return {"seed": cfg.seed, "frames": result["frames"],
             "seen_success": result["eval"]["seen"]["success_rate"],
             "unseen_success": result["eval"]["unseen"]["success_rate"],
@@ -97,9 +102,9 @@ def run_seed(cfg: ppo.PPOConfig) -> dict:
             "demo_frames": (result["demos"] or {}).get("frames", 0),
             "guide_success": (result["demos"] or {}).get("guide_success"),
             "dagger_success": (result["demos"] or {}).get("dagger_success"),
-            # the cloned policy before any PPO update (None for a resumed run: measured in its first invocation)
+            # the cloned policy before any PPO update (a resumed run reads it from its checkpoint)
             "warmstart_success": (result["demos"] or {}).get("warmstart_eval"),
-            "curve": [{k: clean(row.get(k)) for k in CURVE_KEYS} for row in result["history"]]}
+            "curve": [{k: no_nan(row.get(k)) for k in CURVE_KEYS} for row in result["history"]]}
 
 
 def main(argv=None) -> dict:
@@ -114,7 +119,6 @@ def main(argv=None) -> dict:
     parser.add_argument("--eval-episodes", type=int, default=3, help="per seen and unseen object")
     parser.add_argument("--runs", default="runs/curriculum")
     parser.add_argument("--results", type=Path, default=RESULTS)
-    parser.add_argument("--resume", action="store_true", help="(runs with a checkpoint are always resumed)")
     parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
     args = parser.parse_args(argv)
     if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run

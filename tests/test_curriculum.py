@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from functools import partial
 
 import numpy as np
@@ -263,3 +264,17 @@ def make_guide_policy(path):
     from dexart_lite.rl.evaluate import load_policy
 
     return policy_function(load_policy(path)[0])
+
+
+def test_the_curriculum_benchmark_writes_the_fields_it_documents(tmp_path, load_benchmark):
+    bench = load_benchmark("curriculum_runs")
+    result = bench.main(["--task", "laptop", "--recipe", "reverse_bc", "--seeds", "0", "--runs", str(tmp_path / "runs"),
+                         "--results", str(tmp_path / "results")])  # fast mode (conftest): a smoke run
+    written = json.loads((tmp_path / "results" / "laptop_state_reverse_bc.json").read_text())
+    assert written == json.loads(json.dumps(result))
+    for key in ("task", "obs", "recipe", "frames", "demo_frames", "per_seed", "seen_success", "unseen_success",
+                "command", "machine"):
+        assert key in written, key
+    row, = written["per_seed"]
+    assert row["frames"] == 400 and row["demo_frames"] > 0 and row["curve"][0]["frames"] == 200
+    assert {"seed", "seen_success", "unseen_success", "wall_time_s", "warmstart_success"} <= row.keys()

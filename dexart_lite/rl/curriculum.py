@@ -31,9 +31,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import torch
 
 from dexart_lite.utils import check_choice
 
@@ -46,8 +48,6 @@ DONE_FRACTION = 0.9  # reverse: once this share of frontiers is at 0, every epis
 
 def check_guide(guide: str) -> None:
     """``guide`` is ``"expert"`` or the path of a checkpoint file (a PPO or distill run of the task)."""
-    from pathlib import Path
-
     if guide != "expert" and not Path(guide).is_file():
         raise ValueError(f"unknown guide {guide!r}: valid choices are 'expert' or the path of a checkpoint file")
 
@@ -161,6 +161,7 @@ def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kw
     what is observed."""
     from dexart_lite.envs import make
     from dexart_lite.experts.solve import solve_episodes
+    from dexart_lite.rollout import run_episodes
 
     # the full horizon (a short test horizon would cut the guide off before it succeeds)
     kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "max_episode_steps"}
@@ -171,14 +172,10 @@ def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kw
     policy = make_guide(env, guide)
     demos = []
     try:
-        for episode_seed, name in solve_episodes(names, max_tries * math.ceil(count / len(names)), seed):
-            obs, info = env.reset(seed=episode_seed, options={"object": name})
-            for t in range(env.unwrapped.horizon):
-                obs, _, terminated, truncated, info = env.step(policy(obs))
-                if terminated or truncated:
-                    break
-            if info["success"]:
-                demos.append((episode_seed, name, t + 1))
+        for episode in solve_episodes(names, max_tries * math.ceil(count / len(names)), seed):
+            result, = run_episodes(policy, env, [episode])
+            if result["success"]:  # success ends the episode: its last step is the success
+                demos.append((*episode, result["steps"]))
             if len(demos) == count:
                 return demos
     finally:
@@ -295,9 +292,6 @@ def read_levels(collector) -> list[dict]:
     return [collector.env.get_wrapper_attr(LEVEL_ATTR)]
 
 
-__all__ = ["Curriculum", "CurriculumConfig", "GuidedStart", "SCHEDULES", "find_demos", "read_levels", "send_level"]
-
-
 class Driven:
     """DAgger's executed policy: ``driver``'s action is executed, ``guide``'s (called on every step, so a
     stateful expert follows the episode) is kept as ``label``."""
@@ -343,7 +337,9 @@ def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, s
             "expert_action": np.stack([a for _, a in rows]).astype(np.float32)}
     if "point_cloud" in rows[0][0]:
         data["point_cloud"] = np.stack([o["point_cloud"] for o, _ in rows]).astype(np.float32)
-    import torch
-
     samples = TensorDict({k: torch.from_numpy(v) for k, v in data.items()}, batch_size=[len(rows)])
     return samples, float(np.mean([e["success"] for e in episodes]))
+
+
+__all__ = ["Curriculum", "CurriculumConfig", "GuidedStart", "SCHEDULES", "find_demos", "guide_demos", "make_guide",
+           "read_levels", "send_level"]

@@ -22,7 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "objects": ("dexart_lite.objects.cli", "list, show, generate and compare the articulated objects"),
     "render": ("dexart_lite.render", "save a GIF of one episode"),
     "solve": ("dexart_lite.experts.solve", "run the scripted (privileged-state) solver on a task"),
-    "train": ("dexart_lite.rl.ppo", "train a point-cloud PPO policy"),
+    "train": ("dexart_lite.rl.train", "train a policy: point-cloud PPO, or SAC from demonstrations (--algo sac)"),
     "eval": ("dexart_lite.rl.evaluate", "evaluate a checkpoint on seen or unseen objects"),
     "data": ("dexart_lite.pretrain.data", "generate datasets: pretraining clouds (dam, objects) and expert demos"),
     "pretrain": ("dexart_lite.pretrain.train", "pretrain the PointNet encoder"),

@@ -52,7 +52,8 @@ class Trunk(nn.Module):
     cloud keeps its shape.
     """
 
-    def __init__(self, state_dim: int, encoder_size: str = "small", normalize: bool = False):
+    def __init__(self, state_dim: int, encoder_size: str = "small", normalize: bool = False,
+                 state_hidden: int = STATE_HIDDEN):
         super().__init__()
         # the 2-D baseline reads the depth image instead of the cloud (the point normalisation then stays unused)
         self.image = encoder_size == "depth_cnn"
@@ -60,9 +61,10 @@ class Trunk(nn.Module):
             self.encoder = None
         else:
             self.encoder = DepthCNN() if self.image else PointNetEncoder(encoder_size)
-        self.state_mlp = nn.Sequential(nn.Linear(state_dim, STATE_HIDDEN), nn.ReLU(),
-                                       nn.Linear(STATE_HIDDEN, STATE_HIDDEN))
-        self.out_dim = (0 if self.encoder is None else FEATURE_DIM) + STATE_HIDDEN
+        # DexArt: 64 units; wider for the state-only diagnostic's clone of the expert (PPOConfig.state_hidden)
+        self.state_mlp = nn.Sequential(nn.Linear(state_dim, state_hidden), nn.ReLU(),
+                                       nn.Linear(state_hidden, state_hidden))
+        self.out_dim = (0 if self.encoder is None else FEATURE_DIM) + state_hidden
         self.normalize = normalize
         if normalize:
             self.register_buffer("state_loc", torch.zeros(state_dim))
@@ -125,15 +127,16 @@ def orthogonal_init(module: nn.Module, gain: float) -> None:
 
 def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "small",
                       init_log_std: float = 0.0, head: tuple[int, ...] = HEAD_HIDDEN,
-                      normalize: bool = False) -> ActorValueOperator:
+                      normalize: bool = False, state_hidden: int = STATE_HIDDEN) -> ActorValueOperator:
     """The shared-trunk actor-critic; the actions' standard deviation starts at ``exp(init_log_std)``
     (DexArt / SB3: 0, i.e. std 1). ``head``: hidden widths of the policy and value MLPs (DexArt: 64, 64);
-    ``normalize``: fixed input normalisation in the trunk (``Trunk``; DexArt: none).
+    ``normalize``: fixed input normalisation in the trunk (``Trunk``; DexArt: none); ``state_hidden``: width
+    of the trunk's state MLP (DexArt: 64).
 
     ``get_policy_operator()`` goes to the collector and the loss's actor; ``get_value_operator()``
     (trunk + value head) to GAE; ``get_value_head()`` to the loss's critic.
     """
-    trunk = Trunk(state_dim, encoder, normalize)
+    trunk = Trunk(state_dim, encoder, normalize, state_hidden)
     policy_net = mlp(trunk.out_dim, tuple(head), action_dim)
     value_net = mlp(trunk.out_dim, tuple(head), 1)
     orthogonal_init(trunk, math.sqrt(2))

@@ -16,7 +16,9 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
-from dexart_lite.models.actor_critic import HEAD_HIDDEN, IMAGE_KEY, POINTS_KEY, STATE_KEY, Acting, make_actor_critic
+from dexart_lite.models.actor_critic import (HEAD_HIDDEN, IMAGE_KEY, POINTS_KEY, STATE_HIDDEN, STATE_KEY, Acting,
+                                             make_actor_critic)
+from dexart_lite.models.soft_actor_critic import make_sac_actor
 
 FILE_FORMAT = "dexart_lite.ppo"
 FILE_VERSION = 1
@@ -56,7 +58,8 @@ def load_checkpoint(path: str | os.PathLike) -> dict:
 
 def architecture(dims: dict) -> dict:
     """``make_actor_critic`` keywords recorded in a checkpoint's ``dims`` (absent: DexArt's)."""
-    return {"head": tuple(dims.get("head", HEAD_HIDDEN)), "normalize": bool(dims.get("normalize", False))}
+    return {"head": tuple(dims.get("head", HEAD_HIDDEN)), "normalize": bool(dims.get("normalize", False)),
+            "state_hidden": int(dims.get("state_hidden", STATE_HIDDEN))}
 
 
 def observation_kwargs(payload: dict) -> dict:
@@ -80,10 +83,15 @@ def network_encoder(cfg: dict) -> str:
 
 
 def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "checkpoint") -> ActorValueOperator:
-    """The actor-critic described by ``payload["dims"]`` with its weights loaded strictly."""
+    """The policy network described by ``payload["dims"]`` with its weights loaded strictly: the PPO / distill
+    actor-critic, or the tanh-Gaussian actor of an off-policy run (``config["algo"] == "sac"``, rl/sac.py)."""
     dims, cfg = payload["dims"], payload["config"]
-    actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], network_encoder(cfg),
-                                     **architecture(dims))
+    if cfg.get("algo") == "sac":
+        actor_critic = make_sac_actor(dims["state_dim"], dims["action_dim"], network_encoder(cfg),
+                                      tuple(dims["head"]), dims["state_hidden"])
+    else:
+        actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], network_encoder(cfg),
+                                         **architecture(dims))
     try:
         actor_critic.load_state_dict(payload["model"], strict=True)
     except RuntimeError as err:
@@ -92,9 +100,11 @@ def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "check
     return actor_critic
 
 
-def policy_function(actor_critic: ActorValueOperator) -> Callable[[dict], np.ndarray]:
-    """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1]."""
-    policy = Acting(actor_critic)  # the actor-critic's outputs without tensordict's per-module overhead
+def policy_function(actor_critic) -> Callable[[dict], np.ndarray]:
+    """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1], of an
+    actor-critic or of any module that writes ``action`` (the off-policy learner's actor)."""
+    # the actor-critic's outputs without tensordict's per-module overhead
+    policy = Acting(actor_critic) if isinstance(actor_critic, ActorValueOperator) else actor_critic
 
     def act(obs: dict) -> np.ndarray:
         td = TensorDict({STATE_KEY: torch.as_tensor(obs["state"])}, [])

@@ -309,14 +309,17 @@ class Driven:
 
 
 def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int,
-                env_kwargs: dict | None = None, guide: str = "expert", driver=None):
+                env_kwargs: dict | None = None, guide: str = "expert", driver=None, transitions: bool = False):
     """Demonstrations of the guide in the learner's observation, in memory: a ``TensorDict`` of ``S`` steps
     with ``observation`` (S, D), ``point_cloud`` (S, N, 3) unless the observation is the state alone, and
     ``expert_action`` (S, A), the clean label. The executed action is the label plus Gaussian noise of std
     ``noise`` (clipped), so the labels also cover states just off the guide's path (DART). Episode ``k`` of
     object ``i`` is reset with seed ``seed + 1000 k + i`` (the ``solve`` order) and the noise has its own
     generator seeded with ``seed``: the same arguments give the same samples. ``driver`` (``obs -> action``, e.g.
-    the student being trained): it acts instead and the guide only labels the states it visits (DAgger)."""
+    the student being trained): it acts instead and the guide only labels the states it visits (DAgger).
+    ``transitions``: also what an off-policy learner replays, in torchrl's layout: ``action`` (the executed
+    one), ``("next", "observation")`` [and ``("next", "point_cloud")``], ``("next", "reward")`` (S, 1),
+    ``("next", "terminated")`` and ``("next", "done")`` (S, 1) bool (done on the last step of each episode)."""
     from tensordict import TensorDict
 
     from dexart_lite.envs import make
@@ -327,17 +330,38 @@ def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, s
     names = env.unwrapped.objects.names  # the split's, or the env_kwargs' object_names
     policy = noisy(make_guide(env, guide), noise, np.random.default_rng(seed)) if driver is None else \
         Driven(make_guide(env, guide), driver)
-    rows = []
+    rows, steps = [], []  # (obs, label); (action, reward, next obs, terminated) when transitions are kept
+    terminates = env.unwrapped.TERMINATE_ON_SUCCESS
+
+    def on_step(obs, action, reward, next_obs, info, t):
+        rows.append((obs, policy.label))
+        if transitions:
+            steps.append((action, reward, next_obs, bool(info["success"]) and terminates))
+
     try:
-        episodes = run_episodes(policy, env, solve_episodes(names, episodes_per_object, seed),
-                                on_step=lambda obs, *_: rows.append((obs, policy.label)))
+        episodes = run_episodes(policy, env, solve_episodes(names, episodes_per_object, seed), on_step=on_step)
     finally:
         env.close()
-    data = {"observation": np.stack([o["state"] for o, _ in rows]).astype(np.float32),
+
+    def stack(observations, key):
+        return np.stack([o[key] for o in observations]).astype(np.float32)
+
+    data = {"observation": stack([o for o, _ in rows], "state"),
             "expert_action": np.stack([a for _, a in rows]).astype(np.float32)}
     if "point_cloud" in rows[0][0]:
-        data["point_cloud"] = np.stack([o["point_cloud"] for o, _ in rows]).astype(np.float32)
+        data["point_cloud"] = stack([o for o, _ in rows], "point_cloud")
     samples = TensorDict({k: torch.from_numpy(v) for k, v in data.items()}, batch_size=[len(rows)])
+    if transitions:
+        done = np.zeros((len(rows), 1), dtype=bool)
+        done[np.cumsum([e["steps"] for e in episodes]) - 1] = True  # the last step of every episode
+        samples["action"] = torch.from_numpy(np.stack([a for a, *_ in steps]).astype(np.float32))
+        following = [n for *_, n, _ in steps]
+        nxt = {"observation": torch.from_numpy(stack(following, "state")),
+               "reward": torch.tensor([[r] for _, r, *_ in steps], dtype=torch.float32),
+               "terminated": torch.tensor([[term] for *_, term in steps]), "done": torch.from_numpy(done)}
+        if "point_cloud" in data:
+            nxt["point_cloud"] = torch.from_numpy(stack(following, "point_cloud"))
+        samples["next"] = TensorDict(nxt, batch_size=[len(rows)])
     return samples, float(np.mean([e["success"] for e in episodes]))
 
 

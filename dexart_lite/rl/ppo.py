@@ -40,8 +40,9 @@ from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.demos import load_demos
-from dexart_lite.models.actor_critic import (POINTS_KEY, STATE_KEY, Acting, action_log_std, encoder_of,
-                                             make_actor_critic, set_action_log_std, trunk_of)
+from dexart_lite.models.actor_critic import (HEAD_HIDDEN, POINTS_KEY, STATE_HIDDEN, STATE_KEY, Acting,
+                                             action_log_std, encoder_of, make_actor_critic, set_action_log_std,
+                                             trunk_of)
 from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_encoder
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
@@ -87,6 +88,8 @@ class PPOConfig:
     obs: str = field(default="cloud", metadata={"help": "cloud (DexArt: point cloud + state, PointNet) or state: a "
                      "diagnostic, the state vector plus the privileged object state and no camera, an MLP policy "
                      "(--encoder is then unused); it measures how learnable a task's reward is apart from perception"})
+    head: str = field(default="64,64", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
+    state_hidden: int = field(default=64, metadata={"help": "width of the trunk's state MLP (DexArt: 64)"})
     reward: str = field(default="dexart", metadata={"help": "dexart, or shaped: plus stage-2 terms toward the grasp "
                         "(envs.rewards.shaping; not DexArt's); evaluation reports success either way"})
     hand: str = field(default="joints", metadata={"help": "joints (DexArt: 16 hand joint targets, a 22-D action) or "
@@ -172,6 +175,16 @@ class PPOConfig:
     ray_address: str | None = field(default=None, metadata={"help": "ray backend: cluster address (None: start a local Ray)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
 
+    def head_widths(self) -> tuple[int, ...]:
+        """``head`` as integers; a ValueError names the expected form."""
+        try:
+            widths = tuple(int(w) for w in self.head.split(","))
+        except ValueError:
+            widths = ()
+        if not widths or min(widths) < 1:
+            raise ValueError(f"--head must be comma-separated positive widths such as 64,64, not {self.head!r}")
+        return widths
+
     def env_kwargs(self) -> dict:
         """Keyword arguments of the env that the training, evaluation and GIF envs share."""
         kwargs = {"num_points": self.num_points}
@@ -240,7 +253,8 @@ def validate(cfg: PPOConfig) -> None:
     check_choice("hand", cfg.hand, HAND_MODES)
     if cfg.obs == "state" and (cfg.pretrained or cfg.freeze_encoder):
         raise ValueError("--obs state has no PointNet: drop --pretrained / --freeze-encoder")
-    for name in ("frames", "frames_per_batch", "epochs", "minibatch", "num_points", "checkpoint_every"):
+    cfg.head_widths()
+    for name in ("frames", "frames_per_batch", "epochs", "minibatch", "num_points", "checkpoint_every", "state_hidden"):
         if getattr(cfg, name) < 1:
             raise ValueError(f"{name} must be >= 1, got {getattr(cfg, name)}")
     if cfg.workers < 0 or (cfg.backend != "process" and cfg.workers < 1):
@@ -399,9 +413,13 @@ def open_run(cfg: PPOConfig) -> Path:
 
 
 def initial_weights(cfg: PPOConfig, state_dim: int, action_dim: int) -> tuple[dict, dict | None]:
-    """(``make_actor_critic`` keywords, weights) of ``--init-from``; DexArt's architecture and no weights without it."""
+    """(``make_actor_critic`` keywords, weights) of ``--init-from`` (its architecture); without it the
+    architecture of ``--head`` and ``--state-hidden`` and no weights."""
+    own = {"head": cfg.head_widths(), "state_hidden": cfg.state_hidden}
     if not cfg.init_from:
-        return {}, None
+        return own, None
+    if own != {"head": HEAD_HIDDEN, "state_hidden": STATE_HIDDEN}:
+        raise ValueError("--init-from brings its own architecture: drop --head / --state-hidden")
     payload = load_checkpoint(cfg.init_from)
     source = payload["config"]
     if (source["task"], source["encoder"]) != (cfg.task, cfg.encoder):
@@ -545,7 +563,11 @@ def restore(learner: Learner, cfg: PPOConfig, path: Path, curriculum: Curriculum
     if state["config"]["encoder"] != cfg.encoder or state["config"]["task"] != cfg.task:
         raise ValueError(f"--resume: {path} is a {state['config']['encoder']} {state['config']['task']} "
                          f"run, not {cfg.encoder} {cfg.task}")
-    learner.actor_critic.load_state_dict(state["model"], strict=True)
+    try:
+        learner.actor_critic.load_state_dict(state["model"], strict=True)
+    except RuntimeError:
+        raise ValueError(f"--resume: {path} holds a network of another shape (its architecture: "
+                         f"{architecture(state['dims'])}); resume with the same --head / --state-hidden") from None
     learner.optimizer.load_state_dict(state["optimizer"])
     if learner.demos is not None and state.get("demos"):  # what the first invocation measured of the warm start
         learner.demos.update({k: v for k, v in state["demos"].items() if k != "frames"})
@@ -679,21 +701,24 @@ def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:
                 desc=f"PPO {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)" if cfg.max_minutes else ""))
 
 
-def evaluate_and_report(cfg: PPOConfig, learner: Learner, history: list, start: float) -> dict:
-    """Evaluation on seen and unseen objects, learning curve, optional GIF and ``report.md``."""
+def evaluate_and_report(cfg, policy, history: list, start: float) -> dict:
+    """Evaluation of ``policy`` (the actor-critic, or an off-policy run's actor) on seen and unseen objects,
+    learning curve, optional GIF and ``report.md``; ``cfg`` is the run's PPOConfig or SACConfig."""
     from dexart_lite.rl.evaluate import evaluate, markdown_table, record_gif
     from dexart_lite.rl.report import plot_curve, write_report
 
     out, evals, gif = Path(cfg.out), [], None
     for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
-        result = evaluate(learner.actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
+        result = evaluate(policy, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
         (out / f"eval_{split}.json").write_text(json.dumps(result, indent=2))
         evals.append(result)
     if cfg.gif:
         name = objects_lib.list_objects(cfg.task, "seen")[0].name
-        gif = record_gif(learner.actor_critic, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,
+        gif = record_gif(policy, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,
                          cfg.env_kwargs())["path"]
-    curve = plot_curve(history, out / "learning_curve.png", title=f"PPO {cfg.task}, {cfg.encoder} PointNet")
+    network = "state MLP" if cfg.obs == "state" else f"{cfg.encoder} PointNet"
+    curve = plot_curve(history, out / "learning_curve.png",
+                       title=f"{getattr(cfg, 'algo', 'ppo').upper()} {cfg.task}, {network}")
     wall = time.perf_counter() - start
     report = write_report(out / "report.md", asdict(cfg), history, evals, curve, wall, gif)
     if evals and cfg.progress:
@@ -784,7 +809,7 @@ def train(cfg: PPOConfig) -> dict:
             collector.shutdown()
         torch.set_num_threads(learner_threads)
     ckpt = save(learner, cfg, ckpt_path, frames_done, batches, history, curriculum)
-    result = evaluate_and_report(cfg, learner, history, start)  # ---- seen and unseen objects, curve, report
+    result = evaluate_and_report(cfg, learner.actor_critic, history, start)  # ---- seen and unseen objects, curve, report
     return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, "demos": learner.demos, **result}
 
 

@@ -47,16 +47,27 @@ def write_report(path: str | Path, cfg: dict, history: list[dict], evals: list[d
     collect = sum(h.get("collect_s", 0.0) for h in history)
     update = sum(h.get("update_s", 0.0) for h in history)
     frames = last.get("frames", 0)
+    network = "state MLP" if cfg.get("obs", "cloud") == "state" else f"{cfg['encoder']} PointNet"
+    if cfg.get("algo", "ppo") == "sac":
+        algo = "SAC"
+        settings = (f"- SAC: lr {cfg['lr']}, batch {cfg['batch']}, {cfg['utd']} updates per frame after "
+                    f"{cfg['warmup_frames']:,} frames, {cfg['critics']} critics (LayerNorm: {cfg['layer_norm']}), tau "
+                    f"{cfg['tau']}, gamma {cfg['gamma']}, rewards x {cfg['reward_scale']}; {cfg['demo_episodes']} "
+                    f"demonstrations per object, {cfg['demo_fraction']:.0%} of every batch; curriculum "
+                    f"{cfg['curriculum']}")
+    else:
+        algo = "PPO"
+        settings = (f"- PPO: lr {cfg['lr']}, {cfg['epochs']} epochs, minibatch {cfg['minibatch']}, clip "
+                    f"{cfg['clip_epsilon']}, gamma {cfg['gamma']}, lambda {cfg['lmbda']}, value coef {cfg['vf_coef']}, "
+                    f"entropy coef {cfg['entropy_coef']}, grad norm {cfg['max_grad_norm']}; {cfg['workers']} collector "
+                    f"workers ({cfg['backend']} backend); encoder {'frozen' if cfg['freeze_encoder'] else 'trained'}"
+                    + (f", initialised from `{cfg['pretrained']}`" if cfg.get("pretrained") else ""))
     lines = [
-        f"# PPO on {cfg['task']} ({cfg['encoder']} PointNet)", "",
+        f"# {algo} on {cfg['task']} ({network})", "",
         f"- frames: {frames:,} in {len(history)} batches of {cfg['frames_per_batch']:,}; wall time "
         f"{wall_time_s / 60:.1f} min (training, evaluation and report) on {platform.machine()}, "
         f"{cfg.get('threads') or 'all'} torch threads",
-        f"- PPO: lr {cfg['lr']}, {cfg['epochs']} epochs, minibatch {cfg['minibatch']}, clip {cfg['clip_epsilon']}, "
-        f"gamma {cfg['gamma']}, lambda {cfg['lmbda']}, value coef {cfg['vf_coef']}, entropy coef "
-        f"{cfg['entropy_coef']}, grad norm {cfg['max_grad_norm']}; {cfg['workers']} collector workers "
-        f"({cfg['backend']} backend); encoder {'frozen' if cfg['freeze_encoder'] else 'trained'}"
-        + (f", initialised from `{cfg['pretrained']}`" if cfg.get("pretrained") else ""),
+        settings,
         f"- throughput: collection {frames / collect if collect else float('nan'):.0f} frames/s "
         f"({collect:.0f} s), update {frames / update if update else float('nan'):.0f} frames/s ({update:.0f} s)",
         f"- last training batch: return {_fmt(last.get('episode_return'))}, success "

@@ -1,0 +1,55 @@
+"""``dexart-lite train``: PPO (``rl/ppo.py``, DexArt's learner and the default) or the off-policy learner
+(``rl/sac.py``: SAC with the guide's demonstrations in its replay buffer, ``--algo sac``).
+
+    dexart-lite train --task laptop --preset cpu --frames 60000                       # PPO
+    dexart-lite train --algo sac --task laptop --obs state --frames 300000            # SAC + demonstrations
+
+The two share every flag of the same name (task, frames, lr, curriculum, guide, ...); each has its own
+defaults (``PPOConfig``'s faithful preset, ``SACConfig``). A flag that only one learner has is refused by the
+other, with its name, instead of being ignored.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import fields
+
+from dexart_lite.rl import ppo, sac
+from dexart_lite.utils import check_choice
+
+ALGOS = ("ppo", "sac")
+PPO_ONLY = sorted({f.name for f in fields(ppo.PPOConfig)} - {f.name for f in fields(sac.SACConfig)})
+SAC_ONLY = sorted({f.name for f in fields(sac.SACConfig)} - {f.name for f in fields(ppo.PPOConfig)} - {"algo"})
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--algo", default="ppo", help="ppo (DexArt's; --preset and the PPO flags) or sac (off-policy "
+                        "SAC with demonstrations in the replay buffer, rl/sac.py; its own defaults)")
+    ppo.add_arguments(parser)  # every PPOConfig field and --preset; defaults None (the preset's / SACConfig's apply)
+    group = parser.add_argument_group("sac only")
+    for f in fields(sac.SACConfig):
+        if f.name not in SAC_ONLY:
+            continue
+        flag = "--" + f.name.replace("_", "-")
+        helptext = f.metadata.get("help", "") + f" (sac default: {f.default})"
+        if isinstance(f.default, bool):
+            group.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
+        else:
+            kind = {"int": int, "float": float}.get(str(f.type).split(" |")[0], str)
+            group.add_argument(flag, type=kind, default=None, help=helptext)
+
+
+def given(args: argparse.Namespace, names: list[str]) -> list[str]:
+    return ["--" + n.replace("_", "-") for n in names if getattr(args, n, None) is not None]
+
+
+def run(args: argparse.Namespace) -> int:
+    check_choice("algorithm (--algo)", args.algo, ALGOS)
+    if args.algo == "ppo":
+        if given(args, SAC_ONLY):
+            raise ValueError(f"{', '.join(given(args, SAC_ONLY))}: SAC options; add --algo sac or drop them")
+        return ppo.run(args)
+    wrong = given(args, PPO_ONLY) + (["--preset"] if args.preset != "faithful" else [])
+    if wrong:
+        raise ValueError(f"{', '.join(wrong)}: PPO options that --algo sac does not use")
+    return sac.run(args)

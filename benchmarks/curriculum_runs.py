@@ -32,7 +32,7 @@ from pathlib import Path
 import torch
 
 import dexart_lite
-from dexart_lite.rl import ppo
+from dexart_lite.rl import ppo, sac
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 RESULTS = Path(__file__).parent / "results" / "curriculum"
@@ -48,6 +48,7 @@ DEMO = {"demo_episodes": 4, "demo_noise": 0.1, "bc_warmstart": 30, "critic_warmu
 # distilled students: the value loss stays out of the shared trunk (critic_detach) with its own lr 1e-3, the
 # actor's lr 1e-4 (not 3e-4) with SB3's KL early stop at 0.02; a stronger, slower-decaying BC term (1.0, x 0.99
 # per batch) on twice the demonstrations (8 per object), cloned for 50 epochs, and 5 critic-only batches.
+WIDE = {"head": "256,256", "state_hidden": 256}
 GUARDED = {**DEMO, "demo_episodes": 8, "bc_warmstart": 50, "critic_warmup": 5, "bc_coef": 1.0, "bc_decay": 0.99,
            "critic_detach": True, "critic_lr": 1e-3, "lr": 1e-4, "target_kl": 0.02}
 RECIPES = {
@@ -62,14 +63,30 @@ RECIPES = {
     "reverse_dagger": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "curriculum": "reverse",
                        "curriculum_demos": 11, "curriculum_step": 5},
     "reverse_guarded": {**GUARDED, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
+    # wide: the dagger recipes on a 256-unit state MLP and 256x256 heads (DexArt's actor is 64 / 64x64): the
+    # clone it starts from opens 0.55 / 0.56 of the laptops instead of 0.05 / 0.08
+    # (benchmarks/results/curriculum/clone_capacity_laptop_state.json)
+    "dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE},
+    "reverse_dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "curriculum": "reverse",
+                            "curriculum_demos": 11, "curriculum_step": 5},
+    # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of
+    # their own, half of every batch; 2 LayerNorm critics; 1 update per frame after 5,000 frames; 256x256 MLPs)
+    "sac_demos": {"algo": "sac"},
+    "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
 CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean", "wall_s")
 
 
-def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> ppo.PPOConfig:
-    overrides = dict(RECIPES[recipe], task=task, obs=obs, seed=seed, frames=frames, workers=1,
+def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> ppo.PPOConfig | sac.SACConfig:
+    overrides = dict(RECIPES[recipe], task=task, obs=obs, seed=seed, frames=frames,
                      eval_episodes=args.eval_episodes, max_minutes=args.max_minutes, progress=False,
                      threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_{obs}_{recipe}_s{seed}"))
+    if overrides.pop("algo", "ppo") == "sac":
+        if fast_mode():
+            overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
+                             max_episode_steps=30, eval_episodes=1, num_points=64, curriculum_demos=2, buffer=1000)
+        return sac.SACConfig(**overrides)
+    overrides["workers"] = 1
     if fast_mode():  # a smoke run of the script itself, not evidence
         overrides.update(frames_per_batch=200, minibatch=100, epochs=1, num_points=64, max_episode_steps=30,
                          eval_episodes=1, frames=400, demo_episodes=min(overrides.get("demo_episodes", 0), 1),
@@ -91,7 +108,8 @@ def training_seconds(history: list[dict]) -> float:
 def run_seed(cfg: ppo.PPOConfig) -> dict:
     """Train (or resume) one seed; its row of ``per_seed``."""
     resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
-    result = ppo.train(dataclasses.replace(cfg, resume=resume))
+    learner = sac if isinstance(cfg, sac.SACConfig) else ppo
+    result = learner.train(dataclasses.replace(cfg, resume=resume))
     return {"seed": cfg.seed, "frames": result["frames"],
             "seen_success": result["eval"]["seen"]["success_rate"],
             "unseen_success": result["eval"]["unseen"]["success_rate"],
@@ -126,7 +144,7 @@ def main(argv=None) -> dict:
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
     cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
     summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
-               "preset": "fast", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
+               "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
                "per_seed": [], "command": command_line("benchmarks/curriculum_runs.py", argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()}, "fast_mode": fast_mode(),
                "jobs": args.jobs, **({"note": args.note} if args.note else {})}

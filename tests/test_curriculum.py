@@ -278,3 +278,16 @@ def test_the_curriculum_benchmark_writes_the_fields_it_documents(tmp_path, load_
     row, = written["per_seed"]
     assert row["frames"] == 400 and row["demo_frames"] > 0 and row["curve"][0]["frames"] == 200
     assert {"seed", "seen_success", "unseen_success", "wall_time_s", "warmstart_success"} <= row.keys()
+
+
+def test_the_clone_capacity_benchmark_writes_the_fields_it_documents(tmp_path, load_benchmark):
+    bench = load_benchmark("clone_capacity")
+    path = tmp_path / "clone.json"
+    result = bench.main(["--task", "laptop", "--arch", "wide", "--seeds", "0", "--rounds", "1", "--json", str(path)])
+    assert json.loads(path.read_text()) == json.loads(json.dumps(result))
+    row, = result["per_run"]
+    assert row["arch"] == "wide" and row["head"] == "256,256" and row["state_hidden"] == 256
+    assert len(row["dagger_success"]) == 1 and row["samples"] > 0
+    assert {"seen_success", "unseen_success", "wall_time_s"} <= row.keys() and set(result["summary"]) == {"wide"}
+    for key in ("command", "machine", "eval_episodes_per_object"):
+        assert key in result

@@ -373,14 +373,25 @@ def test_state_only_diagnostic_never_renders_and_trains_an_mlp(tmp_path, monkeyp
     for _ in range(5):
         obs, *_ = env.step(env.action_space.sample())
     env.close()
+    # a wider network than DexArt's (--head, --state-hidden): recorded in the checkpoint, rebuilt from it strictly
     cfg = tiny_config(tmp_path, obs="state", frames=200, frames_per_batch=100, minibatch=50, workers=0,
-                      eval_episodes=1)
+                      eval_episodes=1, head="48,40", state_hidden=24)
     result = ppo.train(cfg)
     assert result["frames"] == 200 and 0.0 <= result["eval"]["seen"]["success_rate"] <= 1.0
-    net = actor_critic_from_checkpoint(load_checkpoint(result["checkpoint"]), result["checkpoint"])
+    payload = load_checkpoint(result["checkpoint"])
+    assert payload["dims"]["head"] == [48, 40] and payload["dims"]["state_hidden"] == 24
+    net = actor_critic_from_checkpoint(payload, result["checkpoint"])
     assert net.module[0].module.encoder is None and net.module[0].in_keys == ["observation"]
+    assert net.module[0].module.state_mlp[0].out_features == 24
+    assert [m.out_features for m in net.module[1].module[0].module[0] if isinstance(m, torch.nn.Linear)] == [48, 40, 22]
+    with pytest.raises(ValueError, match="another shape"):  # resumed with another network: one line, not a traceback
+        ppo.train(dataclasses.replace(cfg, head="64,64", frames=300, resume=True))
     with pytest.raises(ValueError, match="valid choices: cloud, state"):
         ppo.validate(tiny_config(tmp_path, obs="image"))
+    with pytest.raises(ValueError, match="comma-separated positive widths"):
+        ppo.validate(tiny_config(tmp_path, head="64,0"))
+    with pytest.raises(ValueError, match="brings its own architecture"):
+        ppo.initial_weights(tiny_config(tmp_path, head="128,128", init_from=result["checkpoint"]), 47, 22)
 
 
 def test_observation_normalisation_is_fixed_from_a_rollout_of_the_initial_policy(tmp_path):

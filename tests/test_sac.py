@@ -123,3 +123,13 @@ def test_the_cli_names_the_algorithms_and_refuses_flags_of_the_other_learner(tmp
     assert "--epochs: PPO options" in capsys.readouterr().err
     assert cli.main(["train", "--demo-fraction", "0.5", "--out", out]) == 2
     assert "--demo-fraction: SAC options" in capsys.readouterr().err
+
+
+def test_the_curriculum_benchmark_runs_the_off_policy_recipes(tmp_path, load_benchmark):
+    bench = load_benchmark("curriculum_runs")
+    result = bench.main(["--task", "laptop", "--recipe", "sac_demos", "--seeds", "0", "--runs", str(tmp_path / "runs"),
+                         "--results", str(tmp_path / "results")])  # fast mode (conftest): a smoke run
+    assert result["settings"] == {"algo": "sac"} and result["preset"] == "SACConfig defaults"
+    row, = result["per_seed"]
+    assert row["frames"] == 200 and row["demo_frames"] > 0 and [c["frames"] for c in row["curve"]] == [100, 200]
+    assert (tmp_path / "results" / "laptop_state_sac_demos.json").is_file()

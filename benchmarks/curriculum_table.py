@@ -8,6 +8,8 @@ Two tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the
 * ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/curriculum/*.json`` run
   set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success
   from the true reset (mean ± std over the seeds, then each seed), training wall time per seed.
+* ``clone-capacity`` (docs/results/rl_from_experts.md): the DAgger clone of each network size from
+  ``benchmarks/results/curriculum/clone_capacity_*.json`` (``benchmarks/clone_capacity.py``).
 * ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, each cell from its JSON
   (``HEADLINE``), with DexArt's Table 2 (no pretraining) beside them.
 
@@ -65,6 +67,25 @@ def runs_table() -> str:
     return "\n".join(rows)
 
 
+def clone_table() -> str:
+    """Per task and network: the DAgger clone's success from the true reset (benchmarks/clone_capacity.py)."""
+    rows = ["| task | obs | network (state MLP / heads) | seeds | samples / seed | clone's success in its DAgger rounds "
+            "| seen success | unseen success | JSON |", "|" + "---|" * 9]
+    for path in sorted((RESULTS / "curriculum").glob("clone_capacity_*.json")):
+        result = load(path)
+        for arch in result["summary"]:
+            runs = [r for r in result["per_run"] if r["arch"] == arch]
+            seen, unseen = [r["seen_success"] for r in runs], [r["unseen_success"] for r in runs]
+            rounds = " / ".join(", ".join(f"{v:.2f}" for v in r["dagger_success"]) for r in runs)
+            samples = " / ".join(f"{r['samples'] / 1000:.0f}k" for r in runs)
+            each = {name: " / ".join(f"{v:.2f}" for v in values) for name, values in (("seen", seen), ("unseen", unseen))}
+            network = f"`{arch}` ({runs[0]['state_hidden']} / {runs[0]['head'].replace(',', 'x')})"
+            rows.append(f"| {result['task']} | {result['obs']} | {network} | {len(runs)} | {samples} | {rounds} "
+                        f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) "
+                        f"| [{path.name}](../../benchmarks/results/curriculum/{path.name}) |")
+    return "\n".join(rows)
+
+
 def headline_table() -> str:
     rows = ["| task | scripted expert (privileged) | distilled point-cloud student | RL on point clouds | "
             "DexArt Table 2 (RL, no pretraining) |", "|---|---|---|---|---|"]
@@ -80,7 +101,8 @@ def headline_table() -> str:
     return "\n".join(rows)
 
 
-TABLES = {"curriculum-runs": (DOC, runs_table), "rl-headline": (README, headline_table)}
+TABLES = {"curriculum-runs": (DOC, runs_table), "clone-capacity": (DOC, clone_table),
+          "rl-headline": (README, headline_table)}
 
 
 def block(text: str, name: str) -> re.Match | None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from functools import partial
 
 import numpy as np
@@ -291,3 +292,24 @@ def test_the_clone_capacity_benchmark_writes_the_fields_it_documents(tmp_path, l
     assert {"seen_success", "unseen_success", "wall_time_s"} <= row.keys() and set(result["summary"]) == {"wide"}
     for key in ("command", "machine", "eval_episodes_per_object"):
         assert key in result
+
+
+def test_value_error_at_the_switch_uses_the_discounted_return_of_complete_episodes():
+    """Two trajectories of 6 steps, gamma 0.5, reward 1 per step. Trajectory 0: a guided episode (h = 5) ends at
+    step 2 (G_0 = 1.75, V = 1.0 -> error 0.75), then an episode from the true reset that the batch cuts (not
+    counted). Trajectory 1: an episode from the true reset ends at step 1 (G_0 = 1.5, V = 2.0 -> error 0.5)."""
+    from tensordict import TensorDict
+
+    from dexart_lite.rl.ppo import value_error_at_start
+
+    done = torch.tensor([[0, 0, 1, 0, 0, 0], [0, 1, 0, 0, 0, 0]], dtype=torch.bool)
+    first = torch.tensor([[1, 0, 0, 1, 0, 0], [1, 0, 1, 0, 0, 0]], dtype=torch.bool)
+    start = torch.tensor([[5, 5, 5, 0, 0, 0], [0, 0, 3, 3, 3, 3]])
+    value = torch.tensor([[1.0, 0, 0, 9, 0, 0], [2.0, 0, 9, 0, 0, 0]])
+    data = TensorDict({"is_init": first[..., None], "state_value": value[..., None],
+                       "next": {"reward": torch.ones(2, 6, 1), "done": done[..., None], "start_step": start}}, [2, 6])
+    errors = value_error_at_start(data, 0.5)
+    assert errors["value_error_guided"] == pytest.approx(0.75)
+    assert errors["value_error_h0"] == pytest.approx(0.5)
+    data["is_init"] = torch.zeros(2, 6, 1, dtype=torch.bool)  # no episode starts inside the batch
+    assert all(math.isnan(v) for v in value_error_at_start(data, 0.5).values())

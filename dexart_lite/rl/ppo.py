@@ -382,6 +382,31 @@ def batch_stats(data) -> dict:
     return stats
 
 
+def value_error_at_start(data, gamma: float) -> dict:
+    """How well the critic knows where an episode starts: mean |V(s_0) - G_0| over the episodes that start and
+    end inside ``data`` (a collector batch after ``advantages``: rewards scaled as the critic sees them), for the
+    episodes from the true reset (``value_error_h0``) and for those the guide handed over (``value_error_guided``,
+    h > 0: the error at the switch). ``G_0`` is the discounted return the episode collected (a time-limit cut
+    is not bootstrapped; the state vector carries t / T). NaN where no such episode ended."""
+    time_dim = data.ndim - 1
+    reward = data["next", "reward"].squeeze(-1).reshape(-1, data.shape[time_dim])  # (trajectories, T)
+    done = data["next", "done"].squeeze(-1).reshape(reward.shape)
+    first = data["is_init"].squeeze(-1).reshape(reward.shape)
+    value = data["state_value"].squeeze(-1).reshape(reward.shape)
+    guided = data["next", "start_step"].reshape(reward.shape) > 0
+    returns, running = torch.zeros_like(reward), torch.zeros(reward.shape[0])
+    for t in reversed(range(reward.shape[1])):
+        running = reward[:, t] + gamma * running * (~done[:, t])
+        returns[:, t] = running
+    # complete: a done at this step or later in the same trajectory of the batch
+    complete = torch.flip(torch.cummax(torch.flip(done.int(), [1]), 1).values, [1]).bool()
+    error = (value - returns).abs()
+    out = {}
+    for name, mask in (("value_error_h0", first & complete & ~guided), ("value_error_guided", first & complete & guided)):
+        out[name] = float(error[mask].mean()) if bool(mask.any()) else math.nan
+    return out
+
+
 @dataclass
 class Learner:
     """The actor-critic and everything that updates it (built once per run by ``build_learner``)."""
@@ -787,6 +812,7 @@ def train(cfg: PPOConfig) -> dict:
             n = data.numel()
             frames_done, batches = frames_done + n, batches + 1
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **starts, **losses,
+                   **value_error_at_start(data, cfg.gamma),
                    "log_std": float(action_log_std(learner.actor_critic).mean()),
                    **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()}
                       if learner.sil is not None else {}),

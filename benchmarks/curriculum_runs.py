@@ -70,7 +70,8 @@ RECIPES = {
     "reverse_dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "curriculum": "reverse",
                             "curriculum_demos": 11, "curriculum_step": 5},
     # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of
-    # their own, half of every batch; 2 LayerNorm critics; 1 update per frame after 5,000 frames; 256x256 MLPs)
+    # their own, half of every batch; 2 LayerNorm critics; 1 update per frame after 5,000 frames; a 256-unit
+    # state trunk and one 256-unit hidden layer in each network)
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }

@@ -32,3 +32,20 @@ def test_a_changed_number_is_caught(tmp_path, monkeypatch):
     monkeypatch.setitem(tables.TABLES, "curriculum-runs", (missing, tables.runs_table))
     with pytest.raises(ValueError, match="no <!-- curriculum-runs -->"):
         tables.main(["--write"])
+
+
+def test_nothing_in_the_repository_links_outside_it():
+    """A user's clone has nothing beside it: no tracked text file may point to the reference notes next to ours."""
+    import subprocess
+
+    root = SCRIPT.parent.parent
+    outside = ("../" + "shared", "shared/" + "reference")  # spelt in two parts, so this file does not match itself
+    tracked = subprocess.run(["git", "ls-files"], cwd=root, capture_output=True, text=True, check=True).stdout.split()
+    offenders = []
+    for name in tracked:
+        if Path(name).suffix not in {".py", ".md", ".ipynb", ".cfg", ".txt", ".toml", ".yml", ".yaml"} and name != "Makefile":
+            continue
+        text = (root / name).read_text(errors="replace")
+        if any(link in text for link in outside):
+            offenders.append(name)
+    assert offenders == []

@@ -2,7 +2,9 @@
 
 Every link of a generated object is a list of **convex pieces** (``trimesh.Trimesh``, watertight,
 outward normals). Each link is written as one OBJ with one ``o`` block per piece, so PyBullet builds a
-compound of convex hulls without any decomposition (``../shared/reference/assets.md`` section 3.2).
+compound of convex hulls without any decomposition. (Measured in pybullet 3.2.7: a U-shaped cup written as
+one merged mesh collides as a single convex hull, so a dropped sphere rests on its rim; written with one ``o``
+block per convex piece, the sphere falls inside.)
 The same OBJ is used for the visual and the collision geometry.
 
 All lengths are metres, all angles radians, densities kg/m^3.

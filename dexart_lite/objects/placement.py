@@ -2,8 +2,8 @@
 
 DexArt places each object at ``robot_base + annotated_position`` with yaw ``annotated_yaw`` and, at
 every reset, adds ``U[0, rand_pos)`` on x, y **and** z plus ``U[-rand_deg, +rand_deg]`` of yaw about
-the object's own origin (``../shared/reference/dexart-original.md`` section 0; dexart_lite keeps the
-one-sided noise). We choose the nominal placement per object:
+the object's own origin (DexArt's scene setup: the noise on x, y and z is one-sided, ``U[0, rand_pos)``,
+and dexart_lite keeps it so). We choose the nominal placement per object:
 
 * yaw = 0 (the functional part faces the robot at -x and is visible from +y);
 * z = -robot_base_z: the object stands on the table (table top at world z = 0);

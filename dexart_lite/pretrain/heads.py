@@ -5,7 +5,8 @@
     PCNDecoder         global (B, 256) -> coarse (B, 84, 3) -> folded fine (B, 84 * 16, 3)
     SimSiamPredictor   (B, 256) -> 256 -> GELU -> 256
 
-Sizes follow DexArt's ``examples/pretrain`` (see ``shared/reference/dexart-original.md`` section 6).
+Sizes follow DexArt's ``examples/pretrain`` (its segmentation, classification, PCN reconstruction and
+SimSiam heads on the 256-D PointNet feature).
 The heads output logits; losses live in ``losses.py``.
 """
 

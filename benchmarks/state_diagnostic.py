@@ -11,7 +11,7 @@ Every task x seed is one ``benchmarks/bench_learning.py`` run with ``--obs state
 the privileged object state: the part's pose, joint angle, initial angle, target and grasp point; no
 camera, an MLP policy) and the settings below, written as ``learning_<task>_state_<tag>_s<seed>.json``
 next to the other learning results (tag ``dexart`` for ``--preset cpu``: DexArt's reward; ``fast``). A run whose JSON already holds these settings is read back, not
-repeated (the two laptop seeds of the README's state-only section are such runs). Runs go one after the
+repeated (the two laptop seeds of docs/results/ppo.md's state-only section are such runs). Runs go one after the
 other, alone.
 
 Reported per task: **frames to first success** (the first PPO batch whose collected, stochastic episodes
@@ -41,7 +41,7 @@ from dexart_lite.rl.ppo import PRESETS, PPOConfig  # noqa: E402
 from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
-# --preset cpu: departures from the cpu preset, as the laptop state-only runs of the README (bench_learning
+# --preset cpu: departures from the cpu preset, as the laptop state-only runs of docs/results/ppo.md (bench_learning
 # --set and --init-log-std); --preset fast: the fast preset, which holds them, on the state observation
 SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"],
             "fast_sil": ["obs=state", "sil_coef=1.0"], "fast_synergy": ["obs=state", "hand=synergy"]}

@@ -17,7 +17,7 @@ and the unseen laptops and writes into a fresh folder ``demo_out/<date-time>/``:
 - ``checkpoint.pt``: a PPO checkpoint (``dexart-lite eval --ckpt ...``).
 
 This is imitation of a privileged expert, not reinforcement learning: ``dexart-lite train`` is PPO
-(far too slow to open a laptop in minutes on a CPU; see the README's learning sections).
+(far too slow to open a laptop in minutes on a CPU; see docs/results/ppo.md).
 """
 
 from __future__ import annotations

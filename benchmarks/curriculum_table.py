@@ -3,7 +3,7 @@
     python benchmarks/curriculum_table.py            # print both tables
     python benchmarks/curriculum_table.py --write    # refresh them in docs/results/rl_from_experts.md and README.md
 
-Two tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
+Three tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
 
 * ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/curriculum/*.json`` run
   set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success

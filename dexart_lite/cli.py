@@ -35,19 +35,24 @@ COMMANDS: dict[str, tuple[str, str]] = {
 USER_ERRORS = (ValueError, FileNotFoundError, KeyError, RuntimeError, OSError)
 
 
-def add_config_arguments(parser: argparse.ArgumentParser, config_cls) -> None:
-    """One ``--flag-name`` per field of the dataclass ``config_cls``, typed from its annotation
-    (``int | None`` -> int), with the field's ``metadata["help"]`` and its default; booleans get
-    ``--flag`` / ``--no-flag``."""
+def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, given_only: bool = False,
+                         default_label: str = "default") -> None:
+    """One ``--flag-name`` per field of the dataclass ``config_cls`` (or of its fields in ``names``), typed from
+    its annotation (``int | None`` -> int), with the field's ``metadata["help"]`` and "(default_label: value)";
+    booleans get ``--flag`` / ``--no-flag``. ``given_only``: every flag defaults to None, so that the caller can
+    tell the flags given from the rest (a preset, or another config's defaults, then fills those in)."""
     hints = typing.get_type_hints(config_cls)
     for f in dataclasses.fields(config_cls):
+        if names is not None and f.name not in names:
+            continue
         flag = "--" + f.name.replace("_", "-")
-        help_text = f.metadata.get("help", "") + f" (default: {f.default})"
+        help_text = f.metadata.get("help", "") + f" ({default_label}: {f.default})"
+        default = None if given_only else f.default
         if hints[f.name] is bool:
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default, help=help_text)
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=default, help=help_text)
         else:
             kinds = [k for k in typing.get_args(hints[f.name]) if k is not type(None)] or [hints[f.name]]
-            parser.add_argument(flag, type=kinds[0], default=f.default, help=help_text)
+            parser.add_argument(flag, type=kinds[0], default=default, help=help_text)
 
 
 def config_from_args(config_cls, args: argparse.Namespace):

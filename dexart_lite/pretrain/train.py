@@ -30,7 +30,7 @@ import csv
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import torch
@@ -364,18 +364,15 @@ def train(cfg: PretrainConfig) -> dict:
 
 # ----------------------------------------------------------------------------- command line
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    for f in fields(PretrainConfig):
-        flag = "--" + f.name.replace("_", "-")
-        help_text = f.metadata.get("help", "") + f" (default: {f.default})"
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default, help=help_text)
-        else:
-            kind = type(f.default) if f.default is not None else str
-            parser.add_argument(flag, type=kind, default=f.default, help=help_text)
+    from dexart_lite.cli import add_config_arguments
+
+    add_config_arguments(parser, PretrainConfig)
 
 
 def run(args: argparse.Namespace) -> int:
-    result = train(PretrainConfig(**{f.name: getattr(args, f.name) for f in fields(PretrainConfig)}))
+    from dexart_lite.cli import config_from_args
+
+    result = train(config_from_args(PretrainConfig, args))
     metrics, metric = result["metrics"], MAIN_METRIC[result["metrics"]["method"]]
     for split in ("val", "test"):
         if split in metrics and metric in metrics[split]:

@@ -841,15 +841,11 @@ def train(cfg: PPOConfig) -> dict:
 
 # ---------------------------------------------------------------- command line
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from dexart_lite.cli import add_config_arguments
+
     parser.add_argument("--preset", default="faithful", help=f"starting point: {', '.join(PRESETS)}")
-    for f in fields(PPOConfig):
-        flag = "--" + f.name.replace("_", "-")
-        helptext = f.metadata.get("help", "") + f" (faithful preset: {f.default})"
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
-        else:
-            kind = {"int": int, "float": float}.get(str(f.type).split(" |")[0], str)  # "float | None" -> float
-            parser.add_argument(flag, type=kind, default=None, help=helptext)
+    # defaults None: the preset supplies every field not given on the command line
+    add_config_arguments(parser, PPOConfig, given_only=True, default_label="faithful preset")
 
 
 def config_from_args(args: argparse.Namespace) -> PPOConfig:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl import ppo, sac
 from dexart_lite.utils import check_choice
 
@@ -26,17 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", default="ppo", help="ppo (DexArt's; --preset and the PPO flags) or sac (off-policy "
                         "SAC with demonstrations in the replay buffer, rl/sac.py; its own defaults)")
     ppo.add_arguments(parser)  # every PPOConfig field and --preset; defaults None (the preset's / SACConfig's apply)
-    group = parser.add_argument_group("sac only")
-    for f in fields(sac.SACConfig):
-        if f.name not in SAC_ONLY:
-            continue
-        flag = "--" + f.name.replace("_", "-")
-        helptext = f.metadata.get("help", "") + f" (sac default: {f.default})"
-        if isinstance(f.default, bool):
-            group.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=helptext)
-        else:
-            kind = {"int": int, "float": float}.get(str(f.type).split(" |")[0], str)
-            group.add_argument(flag, type=kind, default=None, help=helptext)
+    add_config_arguments(parser.add_argument_group("sac only"), sac.SACConfig, names=SAC_ONLY, given_only=True,
+                         default_label="sac default")
 
 
 def given(args: argparse.Namespace, names: list[str]) -> list[str]:

@@ -227,6 +227,8 @@ def test_a_curriculum_run_saves_and_resumes_its_schedule(tmp_path):
     torch.save(payload, tmp_path / "run" / ppo.CHECKPOINT)
     second = ppo.train(dataclasses.replace(cfg, frames=200, resume=True))
     assert second["frames"] == 200
+    assert second["demos"]["frames"] == first["demos"]["frames"]  # the run's demonstration steps, counted once
+    assert second["demos"]["bc_samples"] == first["demos"]["frames"]  # no DAgger rounds: the same demonstrations
     resumed = torch.load(tmp_path / "run" / ppo.CHECKPOINT, weights_only=False)["curriculum"]
     assert all(f <= s for f, s in zip(resumed["frontiers"], [3, 4]))
 

@@ -595,7 +595,10 @@ def restore(learner: Learner, cfg: PPOConfig, path: Path, curriculum: Curriculum
                          f"{architecture(state['dims'])}); resume with the same --head / --state-hidden") from None
     learner.optimizer.load_state_dict(state["optimizer"])
     if learner.demos is not None and state.get("demos"):  # what the first invocation measured of the warm start
-        learner.demos.update({k: v for k, v in state["demos"].items() if k != "frames"})
+        # "frames": the demonstration steps the run took (its DAgger rounds included); a resumed run's BC term
+        # replays only the re-collected demonstrations ("bc_samples")
+        learner.demos["bc_samples"] = learner.demos["frames"]
+        learner.demos.update(state["demos"])
     return state["frames"], state["batches"], state["history"]
 
 

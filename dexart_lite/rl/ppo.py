@@ -387,7 +387,8 @@ def value_error_at_start(data, gamma: float) -> dict:
     end inside ``data`` (a collector batch after ``advantages``: rewards scaled as the critic sees them), for the
     episodes from the true reset (``value_error_h0``) and for those the guide handed over (``value_error_guided``,
     h > 0: the error at the switch). ``G_0`` is the discounted return the episode collected (a time-limit cut
-    is not bootstrapped; the state vector carries t / T). NaN where no such episode ended."""
+    is not bootstrapped; the state vector carries t / T). A key is left out where no such episode ended (the
+    history stays free of NaN, so a resumed run's history compares equal to the saved one)."""
     time_dim = data.ndim - 1
     reward = data["next", "reward"].squeeze(-1).reshape(-1, data.shape[time_dim])  # (trajectories, T)
     done = data["next", "done"].squeeze(-1).reshape(reward.shape)
@@ -403,7 +404,8 @@ def value_error_at_start(data, gamma: float) -> dict:
     error = (value - returns).abs()
     out = {}
     for name, mask in (("value_error_h0", first & complete & ~guided), ("value_error_guided", first & complete & guided)):
-        out[name] = float(error[mask].mean()) if bool(mask.any()) else math.nan
+        if bool(mask.any()):
+            out[name] = float(error[mask].mean())
     return out
 
 

@@ -325,7 +325,10 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
         assert len(workers) >= 2
         main.send_signal(signal.SIGTERM)
         assert main.wait(timeout=60) == 130
-        assert stderr.read_text().strip().splitlines()[-1] == "dexart-lite study: interrupted"
+        # the one-line message and no traceback; the line order is not checked: multiprocessing's resource
+        # tracker may print its own warning about the killed workers' semaphores after it (seen in about 1 run in 3)
+        text = stderr.read_text()
+        assert "dexart-lite study: interrupted" in text.splitlines() and "Traceback" not in text
         deadline = time.monotonic() + 30
         while workers & set(_living_processes()):
             assert time.monotonic() < deadline, "worker processes outlived the study"

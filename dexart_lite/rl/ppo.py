@@ -735,7 +735,7 @@ def evaluate_and_report(cfg, policy, history: list, start: float) -> dict:
     """Evaluation of ``policy`` (the actor-critic, or an off-policy run's actor) on seen and unseen objects,
     learning curve, optional GIF and ``report.md``; ``cfg`` is the run's PPOConfig or SACConfig."""
     from dexart_lite.rl.evaluate import evaluate, markdown_table, record_gif
-    from dexart_lite.rl.report import plot_curve, write_report
+    from dexart_lite.rl.report import network_label, plot_curve, write_report
 
     out, evals, gif = Path(cfg.out), [], None
     for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
@@ -746,9 +746,8 @@ def evaluate_and_report(cfg, policy, history: list, start: float) -> dict:
         name = objects_lib.list_objects(cfg.task, "seen")[0].name
         gif = record_gif(policy, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,
                          cfg.env_kwargs())["path"]
-    network = "state MLP" if cfg.obs == "state" else f"{cfg.encoder} PointNet"
     curve = plot_curve(history, out / "learning_curve.png",
-                       title=f"{getattr(cfg, 'algo', 'ppo').upper()} {cfg.task}, {network}")
+                       title=f"{getattr(cfg, 'algo', 'ppo').upper()} {cfg.task}, {network_label(asdict(cfg))}")
     wall = time.perf_counter() - start
     report = write_report(out / "report.md", asdict(cfg), history, evals, curve, wall, gif)
     if evals and cfg.progress:
@@ -857,11 +856,3 @@ def config_from_args(args: argparse.Namespace) -> PPOConfig:
     """The preset named by ``--preset`` with every option given on the command line applied."""
     overrides = {f.name: getattr(args, f.name) for f in fields(PPOConfig) if getattr(args, f.name) is not None}
     return preset(args.preset, **overrides)
-
-
-def run(args: argparse.Namespace) -> int:
-    result = train(config_from_args(args))
-    print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
-    for split, res in result["eval"].items():
-        print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")
-    return 0

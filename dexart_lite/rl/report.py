@@ -14,6 +14,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 from dexart_lite.rl.evaluate import markdown_table  # noqa: E402
 
 
+def network_label(cfg: dict) -> str:
+    """What the policy reads, for titles: "state MLP" (the state-only diagnostic) or "<size> PointNet"."""
+    return "state MLP" if cfg.get("obs", "cloud") == "state" else f"{cfg['encoder']} PointNet"
+
+
 def plot_curve(history: list[dict], path: str | Path, title: str = "") -> Path:
     """Episode return and episode success rate of the training batches against env frames."""
     path = Path(path)
@@ -47,7 +52,6 @@ def write_report(path: str | Path, cfg: dict, history: list[dict], evals: list[d
     collect = sum(h.get("collect_s", 0.0) for h in history)
     update = sum(h.get("update_s", 0.0) for h in history)
     frames = last.get("frames", 0)
-    network = "state MLP" if cfg.get("obs", "cloud") == "state" else f"{cfg['encoder']} PointNet"
     if cfg.get("algo", "ppo") == "sac":
         algo = "SAC"
         settings = (f"- SAC: lr {cfg['lr']}, batch {cfg['batch']}, {cfg['utd']} updates per frame after "
@@ -63,7 +67,7 @@ def write_report(path: str | Path, cfg: dict, history: list[dict], evals: list[d
                     f"workers ({cfg['backend']} backend); encoder {'frozen' if cfg['freeze_encoder'] else 'trained'}"
                     + (f", initialised from `{cfg['pretrained']}`" if cfg.get("pretrained") else ""))
     lines = [
-        f"# {algo} on {cfg['task']} ({network})", "",
+        f"# {algo} on {cfg['task']} ({network_label(cfg)})", "",
         f"- frames: {frames:,} in {len(history)} batches of {cfg['frames_per_batch']:,}; wall time "
         f"{wall_time_s / 60:.1f} min (training, evaluation and report) on {platform.machine()}, "
         f"{cfg.get('threads') or 'all'} torch threads",

@@ -389,12 +389,4 @@ def config_from_args(args: argparse.Namespace) -> SACConfig:
     return SACConfig(**overrides)
 
 
-def run(args: argparse.Namespace) -> int:
-    result = train(config_from_args(args))
-    print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
-    for split, res in result["eval"].items():
-        print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")
-    return 0
-
-
 __all__ = ["SACConfig", "mixed_batch", "store", "train", "transition_keys", "validate"]

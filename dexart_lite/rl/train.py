@@ -40,8 +40,13 @@ def run(args: argparse.Namespace) -> int:
     if args.algo == "ppo":
         if given(args, SAC_ONLY):
             raise ValueError(f"{', '.join(given(args, SAC_ONLY))}: SAC options; add --algo sac or drop them")
-        return ppo.run(args)
-    wrong = given(args, PPO_ONLY) + (["--preset"] if args.preset != "faithful" else [])
-    if wrong:
-        raise ValueError(f"{', '.join(wrong)}: PPO options that --algo sac does not use")
-    return sac.run(args)
+        result = ppo.train(ppo.config_from_args(args))
+    else:
+        wrong = given(args, PPO_ONLY) + (["--preset"] if args.preset != "faithful" else [])
+        if wrong:
+            raise ValueError(f"{', '.join(wrong)}: PPO options that --algo sac does not use")
+        result = sac.train(sac.config_from_args(args))
+    print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
+    for split, res in result["eval"].items():
+        print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")
+    return 0

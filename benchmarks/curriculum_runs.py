@@ -32,6 +32,8 @@ from pathlib import Path
 import torch
 
 import dexart_lite
+from dexart_lite.objects import list_objects
+from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig, distill
 from dexart_lite.rl import ppo, sac
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
@@ -72,16 +74,40 @@ RECIPES = {
     # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of
     # their own, half of every batch; 2 LayerNorm critics; 1 update per frame after 5,000 frames; a 256-unit
     # state trunk and one 256-unit hidden layer in each network)
+    # point clouds: PPO from the task's distilled DAgger student (the `student` step: `distill` with the
+    # settings of the student in the README's headline table, STUDENTS) with the guards above; nothing is
+    # cloned again: the guide's 4 noisy episodes per object and 3 rounds of 4 episodes per object that the
+    # student drives (labelled by the guide) are the BC term's data
+    "student_guarded": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "bc_warmstart": 0, "student": True},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
+# the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
+STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
+            "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
 CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean", "wall_s")
+
+
+def student_config(task: str, seed: int, args) -> DistillConfig:
+    """The distillation of the ``student`` step: the headline student's settings, this seed."""
+    overrides = json.loads((RESULTS.parent / STUDENTS[task]).read_text())["overrides"]
+    overrides.update(task=task, seed=seed, eval_episodes=args.eval_episodes, progress=False,
+                     threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_cloud_student_s{seed}"))
+    if fast_mode():  # as bench_distill's smoke run
+        overrides.update(num_points=64, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
+                         episodes_per_round=1, epochs=1, epochs_per_round=1, eval_episodes=1,
+                         objects=list_objects(task, "seen")[0].name)
+    return DistillConfig(**overrides)
 
 
 def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> ppo.PPOConfig | sac.SACConfig:
     overrides = dict(RECIPES[recipe], task=task, obs=obs, seed=seed, frames=frames,
                      eval_episodes=args.eval_episodes, max_minutes=args.max_minutes, progress=False,
                      threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_{obs}_{recipe}_s{seed}"))
+    if overrides.pop("student", False):
+        if obs != "cloud":
+            raise ValueError(f"recipe {recipe} starts from a point-cloud student: needs --obs cloud")
+        overrides["init_from"] = str(Path(student_config(task, seed, args).out) / CHECKPOINT)
     if overrides.pop("algo", "ppo") == "sac":
         if fast_mode():
             overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
@@ -91,7 +117,8 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> pp
     if fast_mode():  # a smoke run of the script itself, not evidence
         overrides.update(frames_per_batch=200, minibatch=100, epochs=1, num_points=64, max_episode_steps=30,
                          eval_episodes=1, frames=400, demo_episodes=min(overrides.get("demo_episodes", 0), 1),
-                         bc_warmstart=min(overrides.get("bc_warmstart", 0), 2), curriculum_demos=2)
+                         bc_warmstart=min(overrides.get("bc_warmstart", 0), 2), curriculum_demos=2,
+                         dagger_rounds=min(overrides.get("dagger_rounds", 0), 1))
     return ppo.preset("fast", **overrides)
 
 
@@ -106,8 +133,12 @@ def training_seconds(history: list[dict]) -> float:
     return sum(ends) + (history[-1]["wall_s"] if history else 0.0)
 
 
-def run_seed(cfg: ppo.PPOConfig) -> dict:
-    """Train (or resume) one seed; its row of ``per_seed``."""
+def run_seed(job: tuple) -> dict:
+    """Distil the student first (``student`` recipes, once), then train (or resume) one seed; its row of
+    ``per_seed``."""
+    cfg, student = job
+    if student is not None and not (Path(student.out) / CHECKPOINT).exists():
+        distill(student)
     resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
     learner = sac if isinstance(cfg, sac.SACConfig) else ppo
     result = learner.train(dataclasses.replace(cfg, resume=resume))
@@ -144,13 +175,17 @@ def main(argv=None) -> dict:
         raise ValueError("fast mode writes smoke results: pass --results elsewhere")
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
     cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
+    students = [student_config(args.task, s, args) if RECIPES[args.recipe].get("student") else None
+                for s in args.seeds]
     summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
+               **({"student": dataclasses.asdict(students[0]) | {"seed": None, "out": None}} if students[0] else {}),
                "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
                "per_seed": [], "command": command_line("benchmarks/curriculum_runs.py", argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()}, "fast_mode": fast_mode(),
                "jobs": args.jobs, **({"note": args.note} if args.note else {})}
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        for row in pool.map(run_seed, cfgs) if args.jobs > 1 else map(run_seed, cfgs):
+        jobs = list(zip(cfgs, students))
+        for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):
             summary["per_seed"].append(row)
             for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
                 summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])

@@ -12,6 +12,7 @@ import torch
 from tensordict import TensorDict
 
 from dexart_lite.envs import make
+from dexart_lite.objects import list_objects
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.rl import ppo
 from dexart_lite.rl.curriculum import (Curriculum, CurriculumConfig, GuidedStart, find_demos, guide_demos, read_levels,
@@ -314,3 +315,28 @@ def test_value_error_at_the_switch_uses_the_discounted_return_of_complete_episod
     assert errors["value_error_h0"] == pytest.approx(0.5)
     data["is_init"] = torch.zeros(2, 6, 1, dtype=torch.bool)  # no episode starts inside the batch
     assert value_error_at_start(data, 0.5) == {}  # nothing to measure: no key (never a NaN in the history)
+
+
+def test_an_init_from_policy_drives_the_dagger_rounds_and_keeps_its_weights(tmp_path):
+    """--init-from with --demo-episodes and --dagger-rounds (no --bc-warmstart): the loaded policy is not
+    cloned again nor renormalised; the guide's demonstrations and the states the loaded policy visits, labelled
+    by the guide, are the BC term's data."""
+    one = dict(task="laptop", obs="state", out=str(tmp_path / "run"), max_episode_steps=20, split="seen_half")
+    objects = len(list_objects("laptop", "seen_half"))
+    env_fn = partial(make_env, "laptop", observation="state", max_episode_steps=20)
+    source = ppo.build_learner(dataclasses.replace(ppo.PPOConfig(), **one, demo_episodes=1, bc_warmstart=2), env_fn)
+    path = ppo.save(source, dataclasses.replace(ppo.PPOConfig(), **one), tmp_path / "student.pt", frames=0,
+                    batches=0, history=[])
+    cfg = dataclasses.replace(ppo.PPOConfig(), **one, init_from=str(path), demo_episodes=1, dagger_rounds=1,
+                              bc_coef=1.0)
+    learner = ppo.build_learner(cfg, env_fn)
+    loaded, saved = learner.actor_critic.state_dict(), source.actor_critic.state_dict()
+    assert all(torch.equal(loaded[k], saved[k]) for k in saved if "log_std" not in k)  # normalisation included
+    assert learner.demos["warmstart_loss"] == [] and len(learner.demos["dagger_success"]) == 1
+    kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
+    guided, _ = guide_demos("laptop", "seen_half", 1, cfg.demo_noise, 10_000 + cfg.seed, kwargs)
+    driven = len(learner.bc_data) - len(guided)  # one episode per object, the loaded policy driving
+    assert torch.equal(learner.bc_data["expert_action"][:len(guided)], guided["expert_action"])
+    assert len(learner.bc_data) == learner.demos["frames"] and objects <= driven <= objects * HORIZON
+    with pytest.raises(ValueError, match="drop --bc-warmstart"):
+        ppo.validate(dataclasses.replace(cfg, bc_warmstart=3))

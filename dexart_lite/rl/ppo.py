@@ -133,8 +133,9 @@ class PPOConfig:
                               "normalised with the demonstrations' statistics. 0: off"})
     dagger_rounds: int = field(default=0, metadata={"help": "after --bc-warmstart: rounds in which the cloned "
                                "policy drives --demo-episodes episodes per object (deterministic actions), the "
-                               "guide labels every state, and the policy is cloned again on all the data (DAgger). "
-                               "Their steps count as demonstration frames. 0: off"})
+                               "guide labels every state, and the policy is cloned again on all the data (DAgger); "
+                               "with --init-from the loaded policy drives and is not retrained (the rounds only "
+                               "collect the BC term's data). Their steps count as demonstration frames. 0: off"})
     anchor_coef: float = field(default=0.0, metadata={"help": "weight of a KL penalty to the --init-from policy "
                                "on the batch's visited states, KL(pi || pi_init) summed over the action dims (as "
                                "RLHF's KL to the reference model); it keeps the fine-tuned policy near the student "
@@ -296,14 +297,17 @@ def validate(cfg: PPOConfig) -> None:
     if cfg.demo_episodes < 0 or cfg.bc_warmstart < 0 or not (math.isfinite(cfg.demo_noise) and cfg.demo_noise >= 0):
         raise ValueError(f"need demo_episodes >= 0, bc_warmstart >= 0 and a finite demo_noise >= 0, got "
                          f"{cfg.demo_episodes}, {cfg.bc_warmstart}, {cfg.demo_noise}")
-    if cfg.dagger_rounds < 0 or (cfg.dagger_rounds and not cfg.bc_warmstart):
-        raise ValueError(f"dagger_rounds must be >= 0 and needs --bc-warmstart (the epochs of each round), got "
-                         f"{cfg.dagger_rounds}")
+    if cfg.dagger_rounds < 0 or (cfg.dagger_rounds and not (cfg.bc_warmstart or cfg.init_from)):
+        raise ValueError(f"dagger_rounds must be >= 0 and needs --bc-warmstart (the epochs of each round) or "
+                         f"--init-from (the policy that drives), got {cfg.dagger_rounds}")
     if cfg.bc_warmstart and not cfg.demo_episodes:
         raise ValueError("bc_warmstart needs --demo-episodes (the data it clones)")
-    if cfg.demo_episodes and (cfg.bc_demos or cfg.obs_norm_steps or cfg.init_from):
-        raise ValueError("--demo-episodes brings its own data and input normalisation: drop --bc-demos, "
-                         "--obs-norm-steps and --init-from")
+    if cfg.demo_episodes and (cfg.bc_demos or cfg.obs_norm_steps):
+        raise ValueError("--demo-episodes brings its own data and input normalisation: drop --bc-demos and "
+                         "--obs-norm-steps")
+    if cfg.bc_warmstart and cfg.init_from:
+        raise ValueError("--init-from is a trained policy already: drop --bc-warmstart (its --demo-episodes and "
+                         "--dagger-rounds then only collect the BC term's data)")
     curriculum_config(cfg).validate()
     if cfg.curriculum != "none" and cfg.backend != "process":
         raise ValueError(f"a curriculum needs the process backend (its level reaches the workers through the "
@@ -514,13 +518,17 @@ def clone_the_guide(cfg: PPOConfig, actor_critic) -> tuple:
     """(samples, info): the guide's demonstrations (``--demo-episodes``), the actor cloned on them
     (``--bc-warmstart``) and ``--dagger-rounds`` in which the clone drives and the guide labels. A resumed run
     collects the demonstrations again (same seeds, same data) for the BC term, but neither clones nor runs
-    the DAgger rounds again (its weights come from the checkpoint)."""
+    the DAgger rounds again (its weights come from the checkpoint). With ``--init-from`` nothing is cloned:
+    the loaded policy drives the DAgger rounds unchanged, so a resumed run (which loads it before the
+    checkpoint) collects the same data again."""
     kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
     samples, guide_success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise, 10_000 + cfg.seed,
                                          kwargs, cfg.guide)
-    warm = bc_warmstart(actor_critic, samples, cfg.bc_warmstart, cfg.seed) if not cfg.resume else []
+    # an --init-from policy keeps its own input normalisation (the one it was trained with)
+    warm = bc_warmstart(actor_critic, samples, cfg.bc_warmstart, cfg.seed,
+                        renormalize=not cfg.init_from) if not cfg.resume else []
     info = {"guide_success": guide_success, "warmstart_loss": warm, "dagger_success": []}
-    for r in range(cfg.dagger_rounds if not cfg.resume else 0):  # the student drives, the guide labels
+    for r in range(cfg.dagger_rounds if cfg.init_from or not cfg.resume else 0):  # the student drives, the guide labels
         visited, success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, 0.0, 20_000 + 1000 * r + cfg.seed,
                                        kwargs, cfg.guide, driver=policy_function(actor_critic))
         samples = torch.cat([samples, visited])
@@ -541,17 +549,17 @@ def build_learner(cfg: PPOConfig, env_fn) -> Learner:
     num_points, state_dim, action_dim = env_dims(probe)
     probe.close()
     arch, weights = initial_weights(cfg, state_dim, action_dim)
-    if cfg.obs_norm_steps or cfg.demo_episodes:
+    if (cfg.obs_norm_steps or cfg.demo_episodes) and weights is None:
         arch["normalize"] = True
     actor_critic = make_actor_critic(state_dim, action_dim, network_encoder(asdict(cfg)), cfg.init_log_std, **arch)
     if cfg.obs_norm_steps and not cfg.resume:  # a resumed run loads the statistics with the weights
         init_normalization(actor_critic, env_fn, cfg.obs_norm_steps, cfg.seed)
-    bc_data, demo_info = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 and cfg.bc_demos else None, None
-    if cfg.demo_episodes:
-        bc_data, demo_info = clone_the_guide(cfg, actor_critic)
     if weights is not None:  # strict: every weight of the student, the input normalisation included
         actor_critic.load_state_dict(weights, strict=True)
         set_action_log_std(actor_critic, cfg.init_log_std)  # the student's log-std was never trained (MSE)
+    bc_data, demo_info = load_demos(cfg.bc_demos) if cfg.bc_coef > 0 and cfg.bc_demos else None, None
+    if cfg.demo_episodes:  # after --init-from: its policy drives the DAgger rounds
+        bc_data, demo_info = clone_the_guide(cfg, actor_critic)
     if cfg.pretrained:
         load_encoder(cfg.pretrained, encoder_of(actor_critic), strict=True)
     if cfg.freeze_encoder:
@@ -781,7 +789,7 @@ def train(cfg: PPOConfig) -> dict:
     learner = build_learner(cfg, env_fn)
     curriculum = make_curriculum(cfg)  # the start-state schedule (None: true resets only); its state lives here
     frames_done, batches, history = restore(learner, cfg, ckpt_path, curriculum) if cfg.resume else (0, 0, [])
-    if learner.demos is not None and cfg.bc_warmstart and not cfg.resume and cfg.eval_episodes:
+    if learner.demos is not None and (cfg.bc_warmstart or cfg.init_from) and not cfg.resume and cfg.eval_episodes:
         learner.demos["warmstart_eval"] = warmstart_evaluation(cfg, learner)  # the curve's frame 0
 
     # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass, ``Acting``).

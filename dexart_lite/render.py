@@ -78,17 +78,20 @@ def make_policy(name: str, env, seed: int = 0) -> Policy:
     if name == "random":
         rng = np.random.default_rng(seed)
         return lambda obs: rng.uniform(-1, 1, 22)
-    path = Path(name)
+    from dexart_lite.rl.checkpoint import checkpoint_path, load_policy
+
+    path = checkpoint_path(name)  # zoo:<task>: a shipped policy
     if not path.exists():
-        raise FileNotFoundError(f"--policy must be 'scripted', 'random' or a checkpoint file; {name!r} is neither")
-    from dexart_lite.rl.checkpoint import load_policy
+        raise FileNotFoundError(f"--policy must be 'scripted', 'random', zoo:<task> or a checkpoint file; {name!r} "
+                                f"is none of them")
 
     return load_policy(path, env)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, help=f"one of {', '.join(dexart_lite.TASKS)}")
-    parser.add_argument("--policy", default="scripted", help="scripted, random, or a checkpoint path")
+    parser.add_argument("--policy", "--ckpt", default="scripted",
+                        help="scripted, random, zoo:<task> (a shipped policy) or a checkpoint path")
     parser.add_argument("--split", default="seen")
     parser.add_argument("--object", help="object name (default: drawn by the seed)")
     parser.add_argument("--seed", type=int, default=0)
@@ -100,9 +103,9 @@ def run(args: argparse.Namespace) -> int:
 
     check_choice("task", args.task, dexart_lite.TASKS)
     kwargs = {}
-    if args.policy not in ("scripted", "random") and Path(args.policy).is_file():  # a checkpoint: its observation
-        from dexart_lite.rl.checkpoint import load_checkpoint, observation_kwargs
+    from dexart_lite.rl.checkpoint import checkpoint_path, load_checkpoint, observation_kwargs
 
+    if args.policy not in ("scripted", "random") and checkpoint_path(args.policy).is_file():  # its observation
         kwargs = {k: v for k, v in observation_kwargs(load_checkpoint(args.policy)).items() if k != "num_points"}
     env = make(args.task, split=args.split, render_mode="rgb_array", **kwargs)
     policy = make_policy(args.policy, env, args.seed)

@@ -38,9 +38,17 @@ def save_checkpoint(path: str | os.PathLike, payload: dict) -> Path:
     return path
 
 
+def checkpoint_path(spec: str | os.PathLike) -> Path:
+    """The file of a checkpoint argument: a path, or ``zoo:<task>`` for a policy shipped in ``dexart_lite.zoo``
+    (an unknown name or a missing file: a one-line error naming the valid entries)."""
+    from dexart_lite import zoo
+
+    return zoo.resolve(spec) if zoo.is_zoo(spec) else Path(spec)
+
+
 def load_checkpoint(path: str | os.PathLike) -> dict:
-    """The payload of a checkpoint written by ``save_checkpoint``."""
-    path = Path(path)
+    """The payload of a checkpoint written by ``save_checkpoint``; ``zoo:<task>`` names a shipped one."""
+    path = checkpoint_path(path)
     if not path.is_file():
         raise FileNotFoundError(f"checkpoint not found: {path}")
     try:

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -48,8 +47,11 @@ DONE_FRACTION = 0.9  # reverse: once this share of frontiers is at 0, every epis
 
 def check_guide(guide: str) -> None:
     """``guide`` is ``"expert"`` or the path of a checkpoint file (a PPO or distill run of the task)."""
-    if guide != "expert" and not Path(guide).is_file():
-        raise ValueError(f"unknown guide {guide!r}: valid choices are 'expert' or the path of a checkpoint file")
+    from dexart_lite.rl.checkpoint import checkpoint_path
+
+    if guide != "expert" and not checkpoint_path(guide).is_file():
+        raise ValueError(f"unknown guide {guide!r}: valid choices are 'expert', zoo:<task> or the path of a "
+                         f"checkpoint file")
 
 
 def make_guide(env: gym.Env, guide: str):

@@ -78,7 +78,8 @@ def record_gif(actor_critic: ActorValueOperator, task: str, path: str | Path, sp
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ckpt", type=Path, required=True, help="checkpoint written by `dexart-lite train`")
+    parser.add_argument("--ckpt", required=True,
+                        help="checkpoint written by `dexart-lite train` or `distill`, or zoo:<task> (a shipped policy)")
     parser.add_argument("--split", default="seen", help=f"one of {', '.join(SPLITS)}")
     parser.add_argument("--episodes-per-object", type=int, default=10, help="DexArt uses 100")
     parser.add_argument("--seed", type=int, default=100, help="env seed (DexArt: 100)")

@@ -47,7 +47,7 @@ from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_enc
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
 from dexart_lite.rl.curriculum import Curriculum, CurriculumConfig, find_demos, guide_demos, send_level
-from dexart_lite.rl.checkpoint import (architecture, load_checkpoint, network_encoder, policy_function,
+from dexart_lite.rl.checkpoint import (architecture, checkpoint_path, load_checkpoint, network_encoder, policy_function,
                                       save_checkpoint)
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
@@ -268,7 +268,7 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError(f"init_log_std must be a finite number, got {cfg.init_log_std}")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
         raise FileNotFoundError(f"pretrained encoder not found: {cfg.pretrained}")
-    if cfg.init_from and not Path(cfg.init_from).is_file():
+    if cfg.init_from and not checkpoint_path(cfg.init_from).is_file():
         raise FileNotFoundError(f"--init-from: checkpoint not found: {cfg.init_from}")
     if cfg.init_from and cfg.pretrained:
         raise ValueError("--init-from already holds an encoder: drop --pretrained")

@@ -112,3 +112,40 @@ def _parses(kind, value: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+DEVICES = ("cpu", "cuda", "auto")
+
+
+def resolve_device(name: str, log=None):
+    """``--device``: the ``torch.device`` the networks, losses and optimizers live on. ``cuda`` on a machine
+    without CUDA is an error, never a silent fallback; ``auto`` takes cuda where it exists, else cpu, and says
+    which through ``log`` (default: stderr). Collection always runs on the CPU."""
+    import sys
+
+    import torch
+
+    check_choice("device", name, DEVICES)
+    has_cuda = torch.cuda.is_available()
+    if name == "cuda" and not has_cuda:
+        raise ValueError("--device cuda: this machine has no CUDA device (torch.cuda.is_available() is False); "
+                         "use --device cpu, or --device auto to take cuda only where there is one")
+    chosen = torch.device("cuda" if name == "cuda" or (name == "auto" and has_cuda) else "cpu")
+    if name == "auto":
+        (log or (lambda line: print(line, file=sys.stderr)))(
+            f"--device auto: using {chosen.type}" + ("" if has_cuda else " (no CUDA device)"))
+    return chosen
+
+
+def to_cpu(state):
+    """A copy of ``state`` (a state dict, or nested dicts / lists of tensors) with every tensor on the CPU: what
+    a checkpoint saves, so that it loads on any machine."""
+    import torch
+
+    if isinstance(state, torch.Tensor):
+        return state.cpu()
+    if isinstance(state, dict):
+        return type(state)((k, to_cpu(v)) for k, v in state.items())
+    if isinstance(state, (list, tuple)):
+        return type(state)(to_cpu(v) for v in state)
+    return state

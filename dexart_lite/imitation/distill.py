@@ -52,7 +52,7 @@ from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkp
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes
-from dexart_lite.utils import check_choice, write_json
+from dexart_lite.utils import DEVICES, check_choice, resolve_device, write_json
 
 METHODS = ("bc", "dagger")
 LOSSES = ("mse", "l1", "nll")
@@ -134,6 +134,8 @@ class DistillConfig:
     out: str = field(default="runs/distill", metadata={"help": "output folder"})
     gif: bool = field(default=False, metadata={"help": "save a GIF of one evaluation episode on an unseen object"})
     threads: int = field(default=0, metadata={"help": "torch threads for training (0: all cores)"})
+    device: str = field(default="cpu", metadata={"help": "where the student trains: cpu, cuda or auto (cuda where "
+                        "there is one); it acts (DAgger, evaluation) on the CPU"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     max_minutes: float | None = field(default=None, metadata={"help": "time budget: no new DAgger round after it"})
 
@@ -192,7 +194,7 @@ class DistillConfig:
 
 
 PATH_FIELDS = ("out", "demos", "pretrained")  # compared as resolved paths: runs/x and /abs/runs/x are one folder
-EXECUTION_FIELDS = ("threads", "progress")  # how a run executes, not what it learns: not compared
+EXECUTION_FIELDS = ("threads", "progress", "device")  # how a run executes, not what it learns: not compared
 
 
 def same_settings(recorded: dict, cfg: DistillConfig) -> bool:
@@ -214,6 +216,9 @@ def validate(cfg: DistillConfig) -> None:
     """``ValueError`` naming the valid choices or range for the first bad field."""
     check_choice("task", cfg.task, TASKS)
     check_choice("method", cfg.method, METHODS)
+    check_choice("device", cfg.device, DEVICES)
+    if cfg.device == "cuda":
+        resolve_device(cfg.device)  # no CUDA here: one line, before any demonstration is collected
     check_choice("encoder", cfg.encoder, ENCODERS)
     check_choice("training split", cfg.split, ("seen", "seen_half"))
     check_choice("loss", cfg.loss, LOSSES)
@@ -291,7 +296,8 @@ def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator) -> 
 
 
 def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig,
-                  epochs: int, aux_head: torch.nn.Module | None = None, ema: AveragedModel | None = None) -> list[float]:
+                  epochs: int, aux_head: torch.nn.Module | None = None, ema: AveragedModel | None = None,
+                  device: torch.device | None = None) -> list[float]:
     """Regress the policy mean onto ``data["expert_action"]`` for ``epochs`` shuffled passes (Adam,
     minibatches of ``cfg.batch_size``); returns the mean loss of each epoch. ``data``: a TensorDict
     of samples (``demos.SAMPLE_SPECS``), in memory or memory-mapped. ``ema``: an exponential moving
@@ -301,7 +307,26 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
     ``cfg.aux_coef > 0``, the loss adds ``aux_coef`` times the MSE of the head's prediction of the
     privileged object state (standardised over ``data``): the point-cloud encoder is made to carry
     the lid's pose and shape, which the action regression alone teaches it too slowly (a student given
-    that state directly, as numbers, imitates the laptop expert; one given only the cloud did not)."""
+    that state directly, as numbers, imitates the laptop expert; one given only the cloud did not).
+
+    ``device`` (not the CPU): the networks train there, fed minibatches moved there, and come back to the
+    CPU at the end, where they act."""
+    if device is None or device.type == "cpu":
+        return fit_student(actor_critic, data, cfg, epochs, aux_head, ema)
+    modules = [m for m in (actor_critic, aux_head, ema) if m is not None]
+    try:
+        for module in modules:
+            module.to(device)
+        return fit_student(actor_critic, data, cfg, epochs, aux_head, ema, device)
+    finally:
+        for module in modules:
+            module.cpu()
+
+
+def fit_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: DistillConfig, epochs: int,
+                aux_head: torch.nn.Module | None, ema: AveragedModel | None,
+                device: torch.device | None = None) -> list[float]:
+    """``train_student``'s passes, with the networks already on ``device`` (None: the CPU, as stored)."""
     policy = actor_critic.get_policy_operator()  # trunk + policy head; the value head is not trained
     use_aux = aux_head is not None and cfg.aux_coef > 0
     params = list(policy.parameters()) + (list(aux_head.parameters()) if use_aux else [])
@@ -309,11 +334,13 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
     if use_aux:
         privileged = data["privileged"]
         mean, std = privileged.mean(0), privileged.std(0).clamp_min(1e-3)  # constant entries: no signal, no blow-up
+        mean, std = (mean.to(device), std.to(device)) if device is not None else (mean, std)
     generator = torch.Generator().manual_seed(cfg.seed)
     n = data.batch_size[0]
     weights = torch.ones(data["expert_action"].shape[-1])  # per action dimension, mean 1
     weights[:6] = cfg.arm_weight
     weights *= len(weights) / weights.sum()
+    weights = weights.to(device) if device is not None else weights
     losses = []
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(epochs):
@@ -322,6 +349,7 @@ def train_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: D
                 batch = data[idx]  # a copy: the shift below leaves the data as they are
                 if cfg.image_shift:
                     batch[IMAGE_KEY] = random_shift(batch[IMAGE_KEY], cfg.image_shift, generator)
+                batch = batch.to(device) if device is not None else batch  # after the shift: its draws are on the CPU
                 out = policy(batch.select(input_key(cfg.encoder), STATE_KEY))
                 target = batch["expert_action"]  # (B, 22)
                 if cfg.loss == "mse":
@@ -404,6 +432,7 @@ def distill(cfg: DistillConfig) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     names = cfg.object_names()
     budget = 60 * cfg.max_minutes if cfg.max_minutes else None
+    device = resolve_device(cfg.device, log=tqdm.write)  # where the student trains
 
     with torch_threads(cfg.threads or os.cpu_count()):
         torch.manual_seed(cfg.seed)
@@ -455,7 +484,7 @@ def distill(cfg: DistillConfig) -> dict:
             # ---- 2. behaviour cloning on the demonstrations
             tick = time.perf_counter()
             buffer.extend(demos)
-            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs, aux_head, ema)
+            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs, aux_head, ema, device)
             expert = {"success_rate": manifest["expert_success_rate"],
                       "mean_max_stage": manifest["expert_mean_max_stage"]}
             advance(log_round("bc", 1.0, len(manifest["episodes"]), expert, manifest["samples"], losses, 1.0,
@@ -478,7 +507,8 @@ def distill(cfg: DistillConfig) -> dict:
                 frames["student"] += samples.batch_size[0]
                 buffer.extend(samples)
                 collected = time.perf_counter()
-                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round, aux_head, ema)
+                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round, aux_head, ema,
+                                       device)
                 advance(log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0],
                                   losses, share, collected - tick, time.perf_counter() - collected))
         finally:
@@ -501,7 +531,7 @@ def distill(cfg: DistillConfig) -> dict:
     report = write_report(out / "report.md", cfg, manifest, history, evals, curve, wall, gif)
     by_split = {e["split"]: e for e in evals}
     return {"checkpoint": str(ckpt), "encoder": str(encoder) if encoder else None, "report": str(report), "curve": str(curve), "gif": gif,
-            "log": str(out / "log.csv"), "demos": str(demo_path),
+            "log": str(out / "log.csv"), "demos": str(demo_path), "device": device.type,
             "seen_success": by_split["seen"]["success_rate"] if evals else None,
             "unseen_success": by_split["unseen"]["success_rate"] if evals else None,
             "expert_frames": frames["expert"], "student_frames": frames["student"], "wall_time_s": wall,

@@ -43,7 +43,7 @@ from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain.heads import ClassificationHead, PCNDecoder, SegmentationHead, SimSiamPredictor
 from dexart_lite.pretrain.losses import (chamfer_distance, confusion_matrix, iou_from_confusion,
                                          reconstruction_loss, simsiam_loss)
-from dexart_lite.utils import check_choice
+from dexart_lite.utils import DEVICES, check_choice, resolve_device
 
 METHODS = ("seg", "cls", "recon", "simsiam")
 BATCH_SIZE = {"seg": 32, "cls": 32, "recon": 64, "simsiam": 64}  # DexArt's (cls: none released)
@@ -77,12 +77,17 @@ class PretrainConfig:
     recon_hidden: int = field(default=256, metadata={"help": "recon: folding MLP width (DexArt 512)"})
     seed: int = 0
     threads: int = field(default=0, metadata={"help": "torch threads (0: torch's default)"})
+    device: str = field(default="cpu", metadata={"help": "where the encoder, head and optimizer live: cpu, cuda or "
+                        "auto (cuda where there is one)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
 
 
 def validate(cfg: PretrainConfig) -> None:
     check_choice("method", cfg.method, METHODS)
     check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
+    check_choice("device", cfg.device, DEVICES)
+    if cfg.device == "cuda":
+        resolve_device(cfg.device)  # no CUDA here: one line, before any data is read
     if cfg.epochs < 1:
         raise ValueError(f"epochs must be >= 1, got {cfg.epochs}")
     if cfg.batch_size < 0 or cfg.max_steps < 0 or cfg.max_train < 0:
@@ -127,15 +132,17 @@ def simsiam_view(points: torch.Tensor, generator: torch.Generator) -> torch.Tens
     Dropped points are replaced by copies of random kept ones (the cloud becomes a subset of
     itself); DexArt sets them to zero instead, which adds a fake point at the origin.
     """
-    b, n, _ = points.shape
-    view = points + torch.randn(points.shape, generator=generator) * JITTER_STD
-    keep = torch.rand(b, n, generator=generator) >= DROPOUT  # (B, N)
+    b, n, _ = points.shape  # the draws are made on the CPU (the generator's), then moved to the points' device
+    view = points + torch.randn(points.shape, generator=generator).to(points.device) * JITTER_STD
+    keep = (torch.rand(b, n, generator=generator) >= DROPOUT).to(points.device)  # (B, N)
     keep[:, 0] = True  # at least one point survives
     kept_first = torch.argsort((~keep).int(), dim=1, stable=True)  # (B, N): kept indices first, in order
-    pick = (torch.rand(b, n, generator=generator) * keep.sum(1, keepdim=True)).long()  # (B, N) r-th kept point
-    source = torch.where(keep, torch.arange(n).expand(b, n), torch.gather(kept_first, 1, pick))  # (B, N)
+    draw = torch.rand(b, n, generator=generator).to(points.device)
+    pick = (draw * keep.sum(1, keepdim=True)).long()  # (B, N) r-th kept point
+    source = torch.where(keep, torch.arange(n, device=points.device).expand(b, n),
+                         torch.gather(kept_first, 1, pick))  # (B, N)
     view = torch.gather(view, 1, source[..., None].expand(-1, -1, 3))
-    angle = torch.rand(b, 1, generator=generator) * ROTATION  # (B, 1) rad
+    angle = torch.rand(b, 1, generator=generator).to(points.device) * ROTATION  # (B, 1) rad
     cos, sin = angle.cos(), angle.sin()
     centre = view.mean(dim=1, keepdim=True)  # (B, 1, 3)
     x, y = view[..., 0] - centre[..., 0], view[..., 1] - centre[..., 1]  # (B, N) each
@@ -161,18 +168,20 @@ def batch_loss(method: str, encoder: PointNetEncoder, head: nn.Module, batch: di
     return simsiam_loss(head(z1), head(z2), z1, z2), None
 
 
-def batches(data: datasets.PointCloudSet, size: int, order: torch.Tensor | None = None):
-    """Minibatches of ``data`` as dicts, in ``order`` (default: as stored)."""
+def batches(data: datasets.PointCloudSet, size: int, order: torch.Tensor | None = None, device=None):
+    """Minibatches of ``data`` as dicts, in ``order`` (default: as stored), on ``device`` (default: the CPU)."""
     order = torch.arange(len(data)) if order is None else order
     for index in order.split(size):
-        yield {"points": data.points[index], "labels": data.labels[index], "category": data.category[index],
-               "object": data.object_index[index]}
+        batch = {"points": data.points[index], "labels": data.labels[index], "category": data.category[index],
+                 "object": data.object_index[index]}
+        yield {k: v.to(device) for k, v in batch.items()} if device is not None else batch
 
 
 @torch.no_grad()
 def encode_all(encoder: PointNetEncoder, data: datasets.PointCloudSet) -> torch.Tensor:
-    """Global features (M, 256) of every cloud of ``data``."""
-    return torch.cat([encoder(b["points"]) for b in batches(data, EVAL_BATCH)])
+    """Global features (M, 256), on the CPU, of every cloud of ``data`` (computed where the encoder is)."""
+    device = next(encoder.parameters()).device
+    return torch.cat([encoder(b["points"]).cpu() for b in batches(data, EVAL_BATCH, device=device)])
 
 
 def knn_accuracy(bank: torch.Tensor, bank_labels: torch.Tensor, query: torch.Tensor, labels: torch.Tensor) -> float:
@@ -191,16 +200,17 @@ def evaluate(method: str, encoder: PointNetEncoder, head: nn.Module, data: datas
     losses, sizes = [], []
     confusion = torch.zeros(data.num_classes, data.num_classes, dtype=torch.long)
     correct, chamfer = [], []
-    for batch in batches(data, EVAL_BATCH):
+    device = next(encoder.parameters()).device  # the metrics are summed on the CPU
+    for batch in batches(data, EVAL_BATCH, device=device):
         loss, output = batch_loss(method, encoder, head, batch, class_weights, generator)
         losses.append(float(loss))
         sizes.append(len(batch["points"]))
         if method == "seg":
-            confusion += confusion_matrix(output.argmax(-1), batch["labels"], data.num_classes)
+            confusion += confusion_matrix(output.argmax(-1), batch["labels"], data.num_classes).cpu()
         elif method == "cls":
-            correct.append(output.argmax(-1) == batch["category"])
+            correct.append((output.argmax(-1) == batch["category"]).cpu())
         elif method == "recon":
-            chamfer.append(chamfer_distance(output[1], batch["points"]))
+            chamfer.append(chamfer_distance(output[1], batch["points"]).cpu())
     metrics = {"clouds": len(data), "loss": sum(l * s for l, s in zip(losses, sizes)) / sum(sizes)}
     if method == "seg":
         iou = iou_from_confusion(confusion)
@@ -292,9 +302,11 @@ def train(cfg: PretrainConfig) -> dict:
         raise ValueError(f"--method cls needs several categories: {cfg.data} holds one (use `dexart-lite data objects`)")
 
     # ---- model: the one PointNetEncoder and the method's head
-    encoder = PointNetEncoder(cfg.encoder)
-    head = make_head(cfg, train_set.num_classes)
+    device = resolve_device(cfg.device, log=tqdm.write)
+    encoder = PointNetEncoder(cfg.encoder).to(device)
+    head = make_head(cfg, train_set.num_classes).to(device)
     class_weights = parse_class_weights(cfg.class_weights, train_set.num_classes)
+    class_weights = class_weights.to(device) if class_weights is not None else None
     optimizer = torch.optim.Adam([*encoder.parameters(), *head.parameters()], lr=cfg.lr)
 
     def bank() -> tuple | None:  # SimSiam's k-NN memory: features of (at most KNN_BANK) training clouds
@@ -317,7 +329,8 @@ def train(cfg: PretrainConfig) -> dict:
     for epoch in range(1, cfg.epochs + 1):
         tick, loss_sum, seen = time.perf_counter(), 0.0, 0
         encoder.train(), head.train()
-        for batch in batches(train_set, batch_size, torch.randperm(len(train_set), generator=generator)):
+        order = torch.randperm(len(train_set), generator=generator)
+        for batch in batches(train_set, batch_size, order, device if device.type != "cpu" else None):
             loss, _ = batch_loss(cfg.method, encoder, head, batch, class_weights, generator)
             optimizer.zero_grad()
             loss.backward()
@@ -352,7 +365,8 @@ def train(cfg: PretrainConfig) -> dict:
         metrics["test"] = evaluate(cfg.method, encoder, head, test_set, class_weights,
                                    bank() if knn_target(train_set) == "category" else None)
     metrics["wall_seconds"] = time.perf_counter() - start
-    metrics["config"] = asdict(cfg)
+    metrics["config"], metrics["device"] = asdict(cfg), device.type
+    encoder, head = encoder.cpu(), head.cpu()  # saved on the CPU: they load on any machine
     encoder_path = save_encoder(encoder, out / "encoder.pt")
     head_path = save_head(head, cfg, train_set.num_classes, out / "head.pt")
     png_path = plot_curves(rows, cfg.method, out / "curves.png")

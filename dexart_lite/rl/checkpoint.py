@@ -108,11 +108,13 @@ def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "check
     return actor_critic
 
 
-def policy_function(actor_critic) -> Callable[[dict], np.ndarray]:
+def policy_function(actor_critic, device: torch.device | None = None) -> Callable[[dict], np.ndarray]:
     """A gymnasium-observation -> action function with deterministic actions, clipped to [-1, 1], of an
-    actor-critic or of any module that writes ``action`` (the off-policy learner's actor)."""
+    actor-critic or of any module that writes ``action`` (the off-policy learner's actor). ``device``: where
+    the network is (the observation goes there, the action comes back); None: the CPU."""
     # the actor-critic's outputs without tensordict's per-module overhead
     policy = Acting(actor_critic) if isinstance(actor_critic, ActorValueOperator) else actor_critic
+    on_device = device is not None and torch.device(device).type != "cpu"
 
     def act(obs: dict) -> np.ndarray:
         td = TensorDict({STATE_KEY: torch.as_tensor(obs["state"])}, [])
@@ -121,6 +123,8 @@ def policy_function(actor_critic) -> Callable[[dict], np.ndarray]:
         if "depth_image" in obs:  # the 2-D baseline's input (env depth_image=True)
             td[IMAGE_KEY] = torch.as_tensor(obs["depth_image"])
         with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+            if on_device:
+                return policy(td.to(device))["action"].clamp(-1.0, 1.0).cpu().numpy()
             return policy(td)["action"].clamp(-1.0, 1.0).numpy()
 
     return act

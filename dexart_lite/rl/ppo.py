@@ -51,7 +51,7 @@ from dexart_lite.rl.checkpoint import (architecture, checkpoint_path, load_check
                                       save_checkpoint)
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
-from dexart_lite.utils import check_choice
+from dexart_lite.utils import DEVICES, check_choice, resolve_device, to_cpu
 
 BACKENDS = ("process", "distributed", "ray")
 CHECKPOINT = "checkpoint.pt"
@@ -68,6 +68,8 @@ class PPOConfig:
 
     task: str = field(default="laptop", metadata={"help": f"one of {', '.join(TASKS)}"})
     encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large"})
+    device: str = field(default="cpu", metadata={"help": "where the networks, the loss and the optimizer live: cpu, "
+                        "cuda or auto (cuda where there is one); collection and evaluation stay on the CPU"})
     frames: int = field(default=1_000_000, metadata={"help": "total env frames (DexArt: ~15M on Laptop)"})
     frames_per_batch: int = field(default=20_000, metadata={"help": "frames collected per PPO update (DexArt: 10 envs x 2000)"})
     workers: int = field(default=2, metadata={"help": "collector processes (0 or 1: collect in this process)"})
@@ -251,6 +253,9 @@ def validate(cfg: PPOConfig) -> None:
     check_choice("training split", cfg.split, ("seen", "seen_half"))
     check_choice("reward", cfg.reward, REWARD_MODES)
     check_choice("observation", cfg.obs, OBSERVATIONS)
+    check_choice("device", cfg.device, DEVICES)
+    if cfg.device == "cuda":
+        resolve_device(cfg.device)  # no CUDA here: one line, before anything is built
     check_choice("hand", cfg.hand, HAND_MODES)
     if cfg.obs == "state" and (cfg.pretrained or cfg.freeze_encoder):
         raise ValueError("--obs state has no PointNet: drop --pretrained / --freeze-encoder")
@@ -429,6 +434,25 @@ class Learner:
     sil: SelfImitationBuffer | None = None  # the best episodes so far (--sil-coef) or None
     critic: torch.nn.Module | None = None  # the value head the loss trains (fed detached features with --critic-detach)
     demos: dict | None = None  # --demo-episodes: their frames (not online frames), the guide's success, BC losses
+    device: torch.device = torch.device("cpu")  # of the networks, the loss and the optimizer (``Learner.to``)
+
+    def to(self, device: torch.device) -> torch.nn.Module:
+        """Move the networks (the loss module's too) to ``device``; the optimizer keeps the same parameters.
+        Returns the module the collectors and evaluation act with: the actor-critic itself on the CPU, else a
+        CPU copy of it that ``sync_acting`` refreshes after every update."""
+        self.device = torch.device(device)
+        if self.device.type == "cpu":
+            return self.actor_critic
+        acting = copy.deepcopy(self.actor_critic)
+        for module in (self.actor_critic, self.loss_module, self.value_operator, self.critic, self.anchor):
+            if module is not None:
+                module.to(self.device)
+        return acting
+
+    def sync_acting(self, acting: torch.nn.Module) -> None:
+        """The CPU copy ``acting`` (``Learner.to``) takes the learner's current weights."""
+        if acting is not self.actor_critic:
+            acting.load_state_dict(self.actor_critic.state_dict())
 
 
 def open_run(cfg: PPOConfig) -> Path:
@@ -618,7 +642,8 @@ def save(learner: Learner, cfg: PPOConfig, path: Path, frames: int, batches: int
     streaks). Not kept: the workers' env and RNG states (a resumed run collects on new seeds) and the
     self-imitation buffer."""
     return save_checkpoint(path, {
-        "config": asdict(cfg), "model": learner.actor_critic.state_dict(), "optimizer": learner.optimizer.state_dict(),
+        "config": asdict(cfg), "model": to_cpu(learner.actor_critic.state_dict()),
+        "optimizer": to_cpu(learner.optimizer.state_dict()),
         "frames": frames, "batches": batches, "history": history, "dims": learner.dims,
         "curriculum": curriculum.state_dict() if curriculum is not None else None, "demos": learner.demos})
 
@@ -652,7 +677,7 @@ def action_distribution(policy, samples) -> tuple[torch.Tensor, torch.Tensor]:
 def bc_loss(learner: Learner, size: int, generator: torch.Generator) -> torch.Tensor:
     """MSE of the policy's action mean to the expert labels, on ``size`` random demonstration samples."""
     idx = torch.randint(len(learner.bc_data), (size,), generator=generator)
-    samples = learner.bc_data[idx]
+    samples = learner.bc_data[idx].to(learner.device)
     loc, _ = action_distribution(learner.actor_critic.get_policy_operator(), samples)
     return torch.nn.functional.mse_loss(loc, samples["expert_action"])
 
@@ -711,7 +736,7 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
                     loss = loss + cfg.anchor_coef * loss_td["kl_init"]
                 if sil is not None:
                     term, parts = sil_loss(learner.actor_critic.get_policy_operator(), learner.critic,
-                                           sil.sample(len(idx), generator), cfg.sil_value_coef)
+                                           sil.sample(len(idx), generator).to(learner.device), cfg.sil_value_coef)
                     loss = loss + cfg.sil_coef * term
                     loss_td.update({k: torch.tensor(v) for k, v in parts.items()})  # floats -> the loss's 0-d tensors
             learner.optimizer.zero_grad()
@@ -791,6 +816,8 @@ def train(cfg: PPOConfig) -> dict:
     frames_done, batches, history = restore(learner, cfg, ckpt_path, curriculum) if cfg.resume else (0, 0, [])
     if learner.demos is not None and (cfg.bc_warmstart or cfg.init_from) and not cfg.resume and cfg.eval_episodes:
         learner.demos["warmstart_eval"] = warmstart_evaluation(cfg, learner)  # the curve's frame 0
+    device = resolve_device(cfg.device, log=tqdm.write)
+    acting = learner.to(device)  # collection and evaluation act on the CPU (a copy when learning on cuda)
 
     # ---- collection: the collector runs the whole actor-critic (action + value in one trunk pass, ``Acting``).
     # Worker i seeds its env with its own seed (a new stream after --resume); the factories seed
@@ -799,7 +826,7 @@ def train(cfg: PPOConfig) -> dict:
     if cfg.frames > frames_done:
         level = dict(level=curriculum.level(), guide=cfg.guide, guide_render=cfg.guide_render) if curriculum else {}
         env_fns = [partial(env_fn, seed=cfg.seed + 1000 * batches + i, **level) for i in range(max(cfg.workers, 1))]
-        collector = make_collector(cfg, env_fns, learner.actor_critic, total_frames=cfg.frames - frames_done)
+        collector = make_collector(cfg, env_fns, acting, total_frames=cfg.frames - frames_done)
     in_process = cfg.backend == "process" and cfg.workers <= 1  # collects in this process, one action at a time
     collect_threads = 1 if in_process else learner_threads
     logger, bar = CSVLogger(exp_name="log", log_dir=str(out)), progress_bar(cfg, frames_done)
@@ -809,11 +836,16 @@ def train(cfg: PPOConfig) -> dict:
         for data in collector or []:
             collected = time.perf_counter()
             torch.set_num_threads(learner_threads)
-            data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
+            # contiguous: the distributed collector yields a lazy stack of the workers' batches
+            data = data.contiguous()
+            on_device = device.type != "cpu"
+            data = data.to(device) if on_device else data
             flat = advantages(data, learner, cfg.reward_scale)  # the rewards in data are scaled from here on
             if learner.sil is not None:  # the batch's finished episodes join the best ones (before the update)
                 learner.sil.add(data)
             losses = ppo_update(flat, learner, cfg, batches)
+            data = data.cpu() if on_device else data  # the log and the curriculum read it on the CPU
+            learner.sync_acting(acting)
             collector.update_policy_weights_()
             starts = curriculum.update(data) if curriculum is not None else {}  # frontiers move on this batch
             if cfg.curriculum == "reverse":
@@ -847,8 +879,9 @@ def train(cfg: PPOConfig) -> dict:
             collector.shutdown()
         torch.set_num_threads(learner_threads)
     ckpt = save(learner, cfg, ckpt_path, frames_done, batches, history, curriculum)
-    result = evaluate_and_report(cfg, learner.actor_critic, history, start)  # ---- seen and unseen objects, curve, report
-    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, "demos": learner.demos, **result}
+    result = evaluate_and_report(cfg, acting, history, start)  # ---- seen and unseen objects, curve, report
+    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, "demos": learner.demos,
+            "device": device.type, **result}
 
 
 # ---------------------------------------------------------------- command line

@@ -26,6 +26,7 @@ data). Not kept: the collector's env and RNG states (a resumed run collects on n
 from __future__ import annotations
 
 import argparse
+import copy
 import math
 import time
 from dataclasses import asdict, dataclass, field, fields
@@ -44,7 +45,7 @@ from dexart_lite.rl.curriculum import guide_demos, send_level
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.ppo import PPOConfig, batch_stats, curriculum_config, evaluate_and_report, make_curriculum
 from dexart_lite.models.pointnet import ENCODER_SIZES
-from dexart_lite.utils import check_choice
+from dexart_lite.utils import DEVICES, check_choice, resolve_device, to_cpu
 
 CHECKPOINT = "checkpoint.pt"
 BUFFER_DIR = "buffer"
@@ -67,6 +68,7 @@ class SACConfig:
                      "an MLP; what fits a CPU) or cloud (point cloud + state, a PointNet in the actor and in every "
                      "critic: ~100x the update cost)"})
     encoder: str = same_as_ppo("encoder", "small")
+    device: str = same_as_ppo("device", "cpu")
     frames: int = field(default=300_000, metadata={"help": "online env frames (the guide's steps and the "
                         "demonstrations are not counted)"})
     frames_per_batch: int = field(default=1000, metadata={"help": "frames collected between two rounds of updates"})
@@ -134,6 +136,9 @@ def validate(cfg: SACConfig) -> None:
     check_choice("observation", cfg.obs, OBSERVATIONS)
     check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
     check_choice("training split", cfg.split, ("seen", "seen_half"))
+    check_choice("device", cfg.device, DEVICES)
+    if cfg.device == "cuda":
+        resolve_device(cfg.device)  # no CUDA here: one line, before anything is built
     cfg.head_widths()
     for name in ("frames", "frames_per_batch", "batch", "critics", "buffer", "num_points", "checkpoint_every",
                  "state_hidden"):
@@ -266,8 +271,8 @@ def save(path: Path, cfg: SACConfig, actor, loss, optimizer, online, frames: int
     if cfg.save_buffer:
         online.dumps(path.parent / BUFFER_DIR)
     return save_checkpoint(path, {
-        "config": asdict(cfg), "model": actor.state_dict(), "loss": loss.state_dict(),
-        "optimizer": optimizer.state_dict(), "frames": frames, "batches": batches, "history": history, "dims": dims,
+        "config": asdict(cfg), "model": to_cpu(actor.state_dict()), "loss": to_cpu(loss.state_dict()),
+        "optimizer": to_cpu(optimizer.state_dict()), "frames": frames, "batches": batches, "history": history, "dims": dims,
         "curriculum": curriculum.state_dict() if curriculum is not None else None, "demos": demo_info,
         "buffer_saved": cfg.save_buffer})
 
@@ -323,12 +328,19 @@ def train(cfg: SACConfig) -> dict:
     curriculum = make_curriculum(cfg)
     frames_done, batches, history = (restore(out / CHECKPOINT, cfg, actor, loss, optimizer, online, curriculum)
                                      if cfg.resume else (0, 0, []))
+    # the networks learn on the device; the collector and the evaluation act with a CPU copy of the actor
+    device = resolve_device(cfg.device, log=tqdm.write)
+    on_device = device.type != "cpu"
+    acting = copy.deepcopy(actor) if on_device else actor
+    if on_device:
+        actor.to(device)
+        loss.to(device)
 
     # ---- collection: one env in this process, the actor's stochastic actions
     collector = None
     if cfg.frames > frames_done:
         level = dict(level=curriculum.level(), guide=cfg.guide, guide_render=cfg.guide_render) if curriculum else {}
-        collector = Collector(partial(env_fn, seed=cfg.seed + 1000 * batches, **level), actor,
+        collector = Collector(partial(env_fn, seed=cfg.seed + 1000 * batches, **level), acting,
                               frames_per_batch=cfg.frames_per_batch, total_frames=cfg.frames - frames_done)
     logger = CSVLogger(exp_name="log", log_dir=str(out))
     bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
@@ -350,9 +362,12 @@ def train(cfg: SACConfig) -> dict:
             sums, demo_share = dict.fromkeys(LOSS_KEYS, 0.0), math.nan
             for _ in range(steps):
                 sample = mixed_batch(online, demo_buffer, cfg.batch, cfg.demo_fraction)
+                sample = sample.to(device) if on_device else sample
                 for key, value in update(loss, updater, optimizer, sample).items():
                     sums[key] += value
                 demo_share = float(sample["demo"].float().mean())
+            if on_device:
+                acting.load_state_dict(actor.state_dict())
             collector.update_policy_weights_()
             updated = time.perf_counter()
 
@@ -377,8 +392,9 @@ def train(cfg: SACConfig) -> dict:
             collector.shutdown()
     ckpt = save(out / CHECKPOINT, cfg, actor, loss, optimizer, online, frames_done, batches, history, dims,
                 curriculum, demo_info)
-    result = evaluate_and_report(cfg, actor, history, start)  # ---- seen and unseen objects, curve, report
-    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, "demos": demo_info, **result}
+    result = evaluate_and_report(cfg, acting, history, start)  # ---- seen and unseen objects, curve, report
+    return {"checkpoint": str(ckpt), "frames": frames_done, "history": history, "demos": demo_info,
+            "device": device.type, **result}
 
 
 # ---------------------------------------------------------------- command line (through rl/train.py)

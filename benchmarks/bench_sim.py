@@ -83,9 +83,9 @@ TIMED_PIECES = [
     ("robot", "twist_to_joint_velocity", "arm_ik"),
     ("robot", "track_arm", "arm_motors_per_substep"),
     ("sim", "step", "physics_substeps"),
-    ("", "_read_state", "state_read"),
+    ("", "read_state", "state_read"),
     ("sim", "contact_forces", "contacts"),
-    ("", "_evaluate", "reward_and_info"),
+    ("", "evaluate_state", "reward_and_info"),
     ("", "_observe", "state_vector"),
     ("sensor", "observe", "cloud_assembly"),
     ("sensor.camera", "render_depth", "render"),
@@ -151,7 +151,7 @@ def main(argv=None) -> dict:
 
     def physics():
         for a in actions:
-            q = env._state.robot.qpos
+            q = env.state.robot.qpos
             env.robot.apply_action(a, q)
             for i in range(env.frame_skip):
                 env.robot.track_arm((i + 1) * env.sim.dt)
@@ -163,8 +163,8 @@ def main(argv=None) -> dict:
 
     def snapshot():
         for _ in actions:
-            state = env._read_state(np.zeros(22), env._state.robot.flange_pos, env._state.robot.palm_pos[2])
-            env._evaluate(state)
+            state = env.read_state(np.zeros(22), env.state.robot.flange_pos, env.state.robot.palm_pos[2])
+            env.evaluate_state(state)
 
     raw = camera.render_depth()
     world, seg = camera.back_project(*raw)

@@ -63,7 +63,7 @@ def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, obj
         traces.append([])
 
     def on_step(obs, action, reward, next_obs, info, t):
-        s = env.unwrapped._state
+        s = env.unwrapped.state
         traces[-1].append((expert.solver.phase, float(s.q), float(s.base_pos[2] - s.base_pos_at_reset[2])))
 
     episodes = solve_episodes(names, episodes_per_object, seed)

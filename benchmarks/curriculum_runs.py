@@ -137,7 +137,8 @@ def run_seed(job: tuple) -> dict:
     """Distil the student first (``student`` recipes, once), then train (or resume) one seed; its row of
     ``per_seed``."""
     cfg, student = job
-    if student is not None and not (Path(student.out) / CHECKPOINT).exists():
+    # a finished distillation ends with its report (its checkpoint is rewritten after every round before that)
+    if student is not None and not (Path(student.out) / "report.md").exists():
         distill(student)
     resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
     learner = sac if isinstance(cfg, sac.SACConfig) else ppo

@@ -59,7 +59,7 @@ def collect(task: str, split: str, episodes_per_object: int, noise: float, seed:
     def record(obs, action, reward, next_obs, info, t):  # the state after the step is the one next_obs shows
         rows["points"].append(np.asarray(next_obs["point_cloud"], np.float32))
         rows["labels"].append(np.asarray(info["point_labels"], np.int64))
-        rows["privileged"].append(expert.solver.privileged(env.unwrapped._state))
+        rows["privileged"].append(expert.solver.privileged(env.unwrapped.state))
 
     episodes = episode_list(env.unwrapped.objects.names, episodes_per_object, np.random.default_rng([seed, 7]))
     run_episodes(noisy(expert, noise, np.random.default_rng([seed, 8])), env, episodes, on_step=record,

@@ -23,7 +23,7 @@ import numpy as np
 
 from dexart_lite import pointcloud as pc
 from dexart_lite.objects import ObjectInfo
-from dexart_lite.sim import BASE_LINK, VELOCITY_CONTROL, Body, BulletSim
+from dexart_lite.sim import BASE_LINK, Body, BulletSim
 
 PART_LINK = 0  # the functional part's link index
 TASK_JOINT = 0  # the task joint's index
@@ -84,8 +84,7 @@ class ArticulatedObjects:
         for link in [BASE_LINK, *body.joints.values()]:
             self.labels.set(body.uid, link, pc.FUNCTIONAL if link == PART_LINK else pc.OBJECT)
         # Joint friction as an implicit velocity motor (URDF damping is unstable for light parts).
-        self.sim.c.setJointMotorControl2(body.uid, TASK_JOINT, VELOCITY_CONTROL, targetVelocity=0.0,
-                                         force=info.joint_friction)
+        self.sim.friction_motor(body, TASK_JOINT, info.joint_friction)
         self.active, self.body = info, body
         return body
 
@@ -106,5 +105,5 @@ class ArticulatedObjects:
     def base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Root frame position (3,), linear (3,) and angular (3,) velocity, world frame."""
         pos, _ = self.sim.base_frame(self.body)
-        lin, ang = self.sim.c.getBaseVelocity(self.body.uid)
+        lin, ang = self.sim.base_velocity(self.body)
         return np.asarray(pos), np.asarray(lin), np.asarray(ang)

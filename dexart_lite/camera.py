@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dexart_lite.sim import ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX, ER_TINY_RENDERER, BulletSim
+from dexart_lite.sim import BulletSim
 
 
 def _unit(v) -> np.ndarray:
@@ -136,7 +136,7 @@ class DepthCamera:
         self.intrinsics = intrinsics
         self._rays = intrinsics.rays(*self.SAMPLE_OFFSET)  # (H*W, 3) float32
         aspect = intrinsics.width / intrinsics.height
-        self._proj = sim.c.computeProjectionMatrixFOV(intrinsics.fovy_deg, aspect, intrinsics.near, intrinsics.far)
+        self._proj = sim.projection_matrix(intrinsics.fovy_deg, aspect, intrinsics.near, intrinsics.far)
         self.set_pose(pose)
 
     def set_pose(self, pose: CameraPose) -> None:
@@ -161,9 +161,7 @@ class DepthCamera:
     def render_depth(self) -> tuple[np.ndarray, np.ndarray]:
         """TinyRenderer's raw z-buffer (H*W,) in [0, 1] and segmentation (H*W,), row-major."""
         cam = self.intrinsics
-        _, _, _, depth, seg = self.sim.c.getCameraImage(
-            cam.width, cam.height, viewMatrix=self._view, projectionMatrix=self._proj,
-            renderer=ER_TINY_RENDERER, shadow=0, flags=ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX)
+        _, _, _, depth, seg = self.sim.camera_image(cam.width, cam.height, self._view, self._proj, segmentation=True)
         return np.asarray(depth, dtype=np.float32).reshape(-1), np.asarray(seg, dtype=np.int64).reshape(-1)
 
     def depth_image(self, depth: np.ndarray, seg: np.ndarray) -> np.ndarray:
@@ -185,8 +183,6 @@ class DepthCamera:
     def render_rgb(self, width: int, height: int) -> np.ndarray:
         """A lit colour image (H, W, 3) uint8 from this camera's pose, for viewing."""
         aspect = width / height
-        proj = self.sim.c.computeProjectionMatrixFOV(self.intrinsics.fovy_deg, aspect, self.intrinsics.near,
-                                                     self.intrinsics.far)
-        rgba = self.sim.c.getCameraImage(width, height, viewMatrix=self._view, projectionMatrix=proj,
-                                         renderer=ER_TINY_RENDERER, shadow=0)[2]
+        proj = self.sim.projection_matrix(self.intrinsics.fovy_deg, aspect, self.intrinsics.near, self.intrinsics.far)
+        rgba = self.sim.camera_image(width, height, self._view, proj, segmentation=False)[2]
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[..., :3]

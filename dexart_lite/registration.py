@@ -1,16 +1,53 @@
-"""The task names, the episode length and the gymnasium ids, registered without importing the envs.
+"""The task names and specs, the episode length and the gymnasium ids, registered without importing the envs.
 
 Registration uses string entry points, so ``import dexart_lite`` stays light (no PyBullet) and the
 ids also exist in spawned worker processes, which re-import the package.
+
+``SPECS`` holds every fact about a task that more than one module needs: where the robot stands, the
+reset randomisation, the split sizes, the success thresholds, the expert, what a distilled student may
+not see, the state vector's size. The env classes (``envs/<task>.py``), the object catalog
+(``objects/``), the experts and the learners read them from here; ``tests/test_envs.py`` checks that
+no other module writes these values down again. Facts used by one module only (reward weights, camera
+poses, crop boxes) stay in that task's env file.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import gymnasium as gym
 
 from dexart_lite.utils import check_choice
 
-TASKS = ("faucet", "bucket", "laptop", "toilet")
+
+@dataclass(frozen=True)
+class TaskSpec:
+    name: str
+    robot_base: tuple[float, float, float]  # m, world position of the arm's base (it faces +x); DexArt's
+    rand_pos: float  # m, reset noise on the object's position, one-sided U[0, rand_pos) on x, y and z (DexArt)
+    rand_yaw_deg: float  # degrees, reset noise on the object's yaw, U[-rand_yaw_deg, rand_yaw_deg] (DexArt)
+    seen: int  # training objects (DexArt's split sizes)
+    unseen: int  # test objects
+    half: int  # the "seen_half" split: the first this many seen objects (DexArt's ablation)
+    success: dict = field(default_factory=dict)  # the thresholds of ``is_success`` (names in the env file)
+    expert: str = ""  # the scripted expert's class in ``dexart_lite.experts``
+    student_drops: str = ""  # state entries a distilled student does not see by default (distill --drop-state auto)
+    state_dim: int = 32  # entries of the state vector (the bucket adds its lift)
+
+
+SPECS = {
+    "faucet": TaskSpec("faucet", (-0.5, 0.0, 0.0), 0.1, 90.0, seen=11, unseen=7, half=5,
+                       success={"angle": 1.5}, expert="FaucetSolver"),  # rad (~86 degrees) turned
+    "bucket": TaskSpec("bucket", (-0.5, 0.0, 0.3), 0.05, 0.0, seen=11, unseen=8, half=5,
+                       success={"progress": 0.7, "lift": 0.25}, expert="BucketSolver", state_dim=33),  # lift: m
+    # laptop students that saw time and the palm's velocity learned to wait instead of to look
+    # (docs/results/students.md)
+    "laptop": TaskSpec("laptop", (-0.5, 0.0, 0.0), 0.1, 60.0, seen=11, unseen=6, half=5,
+                       success={"progress": 0.95}, expert="FeedbackLidSolver", student_drops="time,palm_velocity"),
+    "toilet": TaskSpec("toilet", (-0.5, 0.0, 0.4), 0.2, 45.0, seen=17, unseen=11, half=8,
+                       success={"progress": 0.95}, expert="FeedbackLidSolver"),
+}
+TASKS = tuple(SPECS)
 HORIZON = 250  # control steps per episode (10 s at 25 Hz): the registered max_episode_steps
 OBSERVATIONS = ("cloud", "state")  # the env's ``observation``: DexArt's point cloud + state; the state-only diagnostic
 HAND_MODES = ("joints", "synergy")  # the env's ``hand``: DexArt's 16 joint targets; 3 synergies (robot.py)

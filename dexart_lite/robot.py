@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dexart_lite import robot_model
-from dexart_lite.sim import POSITION_CONTROL, Body, BulletSim
+from dexart_lite.sim import Body, BulletSim
 
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 7))
 HAND_JOINTS = tuple(f"joint_{i}.0" for i in range(16))
@@ -129,7 +129,7 @@ class Robot:
         self.joints = self.arm + self.hand  # (22,) in action order
         if sorted(self.joints) != sorted(b.movable):
             raise RuntimeError("the composed robot URDF does not have exactly the 22 expected joints")
-        info = [sim.c.getJointInfo(b.uid, j) for j in self.joints]
+        info = [sim.joint_info(b, j) for j in self.joints]
         self.lower = np.array([i[8] for i in info])
         self.upper = np.array([i[9] for i in info])
         self.palm, self.flange = b.link(PALM_LINK), b.link(FLANGE_LINK)
@@ -138,10 +138,9 @@ class Robot:
         self.link_to_group = {k: g for g, ks in self.group_links.items() for k in ks}
         for i, a in enumerate(NO_SELF_COLLISION):
             for bname in NO_SELF_COLLISION[i + 1 :]:
-                sim.c.setCollisionFilterPair(b.uid, b.uid, b.link(a), b.link(bname), 0)
+                sim.disable_collision(b, b.link(a), b.link(bname))
         # The Jacobian is taken at link6's URDF frame origin, expressed in its centre-of-mass frame.
-        com_pos, com_quat = sim.c.getDynamicsInfo(b.uid, self.flange)[3:5]
-        self._flange_origin_in_com = sim.c.invertTransform(com_pos, com_quat)[0]
+        self._flange_origin_in_com = sim.link_origin_in_com(b, self.flange)
         self.init_qpos = np.clip(np.concatenate([ARM_INIT_QPOS, np.zeros(16)]), self.lower, self.upper)
         self._arm_q0 = np.zeros(6)
         self._arm_qdot = np.zeros(6)
@@ -154,9 +153,7 @@ class Robot:
         qpos = self.init_qpos if qpos is None else np.asarray(qpos, dtype=float)
         self.sim.reset_joints(self.body, self.joints, qpos)
         self._arm_q0, self._arm_qdot = qpos[:6].copy(), np.zeros(6)
-        self.sim.c.setJointMotorControlArray(self.body.uid, self.joints, POSITION_CONTROL,
-                                             targetPositions=qpos.tolist(), targetVelocities=[0.0] * 22,
-                                             forces=[ARM_FORCE] * 6 + [HAND_FORCE] * 16)
+        self.sim.position_motors(self.body, self.joints, qpos.tolist(), [0.0] * 22, [ARM_FORCE] * 6 + [HAND_FORCE] * 16)
 
     # ----------------------------------------------------------------------------- action
     def hand_targets(self, action_hand: np.ndarray) -> np.ndarray:
@@ -171,9 +168,7 @@ class Robot:
 
     def twist_to_joint_velocity(self, twist: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Damped least squares: flange twist (6,) [m/s, rad/s] -> arm joint velocities (6,) rad/s."""
-        zeros = [0.0] * len(q)
-        lin, ang = self.sim.c.calculateJacobian(self.body.uid, self.flange, self._flange_origin_in_com,
-                                                q.tolist(), zeros, zeros)
+        lin, ang = self.sim.jacobian(self.body, self.flange, self._flange_origin_in_com, q.tolist())
         jac = np.vstack([np.asarray(lin)[:, :6], np.asarray(ang)[:, :6]])  # (6, 6): arm columns only
         jjt = jac @ jac.T + IK_DAMPING**2 * np.eye(6)
         qdot = jac.T @ np.linalg.solve(jjt, twist)
@@ -184,15 +179,13 @@ class Robot:
         twist = np.concatenate([action[:3] * MAX_LINEAR_SPEED, action[3:6] * MAX_ANGULAR_SPEED])
         self._arm_q0 = q[:6].copy()
         self._arm_qdot = self.twist_to_joint_velocity(twist, q)
-        self.sim.c.setJointMotorControlArray(self.body.uid, self.hand, POSITION_CONTROL,
-                                             targetPositions=self.hand_targets(action[6:]).tolist(),
-                                             targetVelocities=[0.0] * 16, forces=[HAND_FORCE] * 16)
+        self.sim.position_motors(self.body, self.hand, self.hand_targets(action[6:]).tolist(), [0.0] * 16,
+                                 [HAND_FORCE] * 16)
 
     def track_arm(self, t: float) -> None:
         """Arm motor targets at ``t`` seconds into the control step: the ramp q0 + qdot * t."""
-        self.sim.c.setJointMotorControlArray(self.body.uid, self.arm, POSITION_CONTROL,
-                                             targetPositions=(self._arm_q0 + self._arm_qdot * t).tolist(),
-                                             targetVelocities=self._arm_qdot.tolist(), forces=[ARM_FORCE] * 6)
+        self.sim.position_motors(self.body, self.arm, (self._arm_q0 + self._arm_qdot * t).tolist(),
+                                 self._arm_qdot.tolist(), [ARM_FORCE] * 6)
 
     # ----------------------------------------------------------------------------- reading
     def read(self) -> RobotState:

@@ -239,6 +239,67 @@ class BulletSim:
             forces[c[3], c[4]] = forces.get((c[3], c[4]), 0.0) + c[9]
         return forces
 
+    def base_velocity(self, body: Body) -> tuple[tuple, tuple]:
+        """Linear (m/s) and angular (rad/s) velocity of the root, world frame."""
+        return self.c.getBaseVelocity(body.uid)
+
+    def detect_collisions(self) -> None:
+        """A collision pass without stepping (refreshes the contact manifolds)."""
+        self.c.performCollisionDetection()
+
+    # ----------------------------------------------------------------------------- motors
+    def position_motors(self, body: Body, joints: list[int], targets: list, velocities: list, forces: list) -> None:
+        """Position-controlled motors on ``joints``: targets (rad), target velocities (rad/s), max forces (N*m)."""
+        self.c.setJointMotorControlArray(body.uid, joints, POSITION_CONTROL, targetPositions=targets,
+                                         targetVelocities=velocities, forces=forces)
+
+    def friction_motor(self, body: Body, joint: int, force: float) -> None:
+        """A velocity motor holding ``joint`` at rest with at most ``force`` (N*m): joint friction."""
+        self.c.setJointMotorControl2(body.uid, joint, VELOCITY_CONTROL, targetVelocity=0.0, force=force)
+
+    def disable_collision(self, body: Body, link_a: int, link_b: int) -> None:
+        """No contacts between two links of ``body``."""
+        self.c.setCollisionFilterPair(body.uid, body.uid, link_a, link_b, 0)
+
+    # ----------------------------------------------------------------------------- model queries
+    def joint_info(self, body: Body, joint: int) -> tuple:
+        """PyBullet's ``getJointInfo`` tuple (limits at 8 and 9, the axis at 13)."""
+        return self.c.getJointInfo(body.uid, joint)
+
+    def link_origin_in_com(self, body: Body, link: int) -> tuple:
+        """Position (3,) of ``link``'s URDF frame origin in its centre-of-mass frame (what Jacobians take)."""
+        com_pos, com_quat = self.c.getDynamicsInfo(body.uid, link)[3:5]
+        return self.c.invertTransform(com_pos, com_quat)[0]
+
+    def jacobian(self, body: Body, link: int, local_position, q: list) -> tuple[tuple, tuple]:
+        """Linear and angular Jacobians (3, dofs) at ``local_position`` (in ``link``'s centre-of-mass frame)
+        for joint positions ``q`` (rad), zero velocities and accelerations."""
+        zeros = [0.0] * len(q)
+        return self.c.calculateJacobian(body.uid, link, local_position, q, zeros, zeros)
+
+    def aabb(self, body: Body, link: int) -> tuple[tuple, tuple]:
+        """World axis-aligned bounding box (low, high), m, of a link's collision shapes."""
+        return self.c.getAABB(body.uid, link)
+
+    def visual_colours(self, body: Body) -> dict[int, tuple]:
+        """RGBA of each link's visual shape."""
+        return {v[1]: tuple(v[7]) for v in self.c.getVisualShapeData(body.uid)}
+
+    def set_colour(self, body: Body, link: int, rgba) -> None:
+        self.c.changeVisualShape(body.uid, link, rgbaColor=rgba)
+
+    # ----------------------------------------------------------------------------- rendering
+    def projection_matrix(self, fovy_deg: float, aspect: float, near: float, far: float) -> list:
+        """OpenGL projection (16 floats, column-major) of a pinhole camera."""
+        return self.c.computeProjectionMatrixFOV(fovy_deg, aspect, near, far)
+
+    def camera_image(self, width: int, height: int, view: list, projection: list, segmentation: bool) -> tuple:
+        """TinyRenderer's (width, height, rgba, depth buffer, segmentation), without shadows; ``segmentation``:
+        per pixel ``uid + ((link + 1) << 24)`` (else PyBullet's default mask)."""
+        extra = {"flags": ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX} if segmentation else {}
+        return self.c.getCameraImage(width, height, viewMatrix=view, projectionMatrix=projection,
+                                     renderer=ER_TINY_RENDERER, shadow=0, **extra)
+
     def save_state(self) -> int:
         """Snapshot of every body's state and the contact caches (an in-memory id)."""
         return self.c.saveState()

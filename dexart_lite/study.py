@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.registration import TASKS
+from dexart_lite.registration import SPECS, TASKS
 from dexart_lite.utils import check_choice, fast_mode, machine_info, parse_overrides, write_json
 
 RESULT = "run.json"  # in each arm/seed folder: the settings and the results of a finished run
@@ -126,8 +126,9 @@ def arm_config(study: Study, arm: str, task: str, seed: int, out: Path, override
 def parameters(cfg) -> int:
     """Trainable parameters of the student of ``cfg`` (trunk and both heads)."""
     from dexart_lite.models.actor_critic import make_actor_critic
+    from dexart_lite.robot import ACTION_DIM
 
-    net = make_actor_critic(33 if cfg.task == "bucket" else 32, 22, cfg.encoder, head=tuple(cfg.head_widths()),
+    net = make_actor_critic(SPECS[cfg.task].state_dim, ACTION_DIM, cfg.encoder, head=tuple(cfg.head_widths()),
                             normalize=cfg.normalize)
     return sum(p.numel() for p in net.parameters())
 

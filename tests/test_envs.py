@@ -1,6 +1,9 @@
 """Contracts every task env must keep: spaces, reward = sum of named terms, seeding, bad input."""
 
+import importlib
 import json
+import re
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -394,3 +397,37 @@ def test_the_env_benchmark_compares_with_an_earlier_commit_side_by_side(load_ben
     assert row["steps_per_s"] > 0 and row["ref_steps_per_s"] > 0
     assert row["vs_ref"] == pytest.approx(row["steps_per_s_subprocess"] / row["ref_steps_per_s"])
     assert report["reset_rss_growth_mb"] is None and json.loads((tmp_path / "e.json").read_text())["ref"] == "HEAD"
+
+
+def test_each_task_spec_is_what_the_env_the_catalog_and_the_experts_use():
+    """registration.SPECS: the env classes, the object splits, the experts, the distillation's default mask and
+    the state size all follow the one spec of their task."""
+    from dexart_lite.experts import SOLVERS
+    from dexart_lite.imitation.distill import DROP_STATE
+    from dexart_lite.objects import placement
+    from dexart_lite.registration import SPECS
+
+    for task, spec in SPECS.items():
+        cls = gym.spec(dexart_lite.registration.env_id(task)).entry_point
+        module, name = cls.split(":")
+        env_cls = getattr(importlib.import_module(module), name)
+        assert (env_cls.CATEGORY, env_cls.ROBOT_BASE, env_cls.RAND_POS) == (task, spec.robot_base, spec.rand_pos)
+        assert env_cls.RAND_YAW == np.deg2rad(spec.rand_yaw_deg) and placement.RAND_YAW_DEG[task] == spec.rand_yaw_deg
+        counts = [len(objects.list_objects(task, split)) for split in ("seen", "unseen", "seen_half")]
+        assert counts == [spec.seen, spec.unseen, spec.half], task
+        assert SOLVERS[task].__name__ == spec.expert and DROP_STATE.get(task, "") == spec.student_drops
+        env = make(task)  # the observation of a student (the state-only diagnostic adds the object's state)
+        assert env.observation_space["state"].shape == (spec.state_dim,)
+        env.close()
+
+
+def test_no_module_writes_a_task_fact_down_again():
+    """The facts of registration.SPECS are assigned nowhere else: a literal robot base, randomisation, split
+    size, success threshold, expert table, student mask or state size elsewhere fails here."""
+    repeated = re.compile(r"^\s*(ROBOT_BASE|RAND_POS|RAND_YAW(_DEG)?|HALF_SIZES|SUCCESS_\w+|FAUCET_SUCCESS|BUCKET_LIFT|"
+                          r"DROP_STATE|SOLVERS)\s*=\s*([-\d(\[\"]|\{\s*\"|np\.deg2rad\(\d)|\b3[23] if .*bucket", re.M)
+    root = Path(__file__).resolve().parent.parent
+    found = [f"{path.relative_to(root)}: {m.group(0).strip()}"
+             for folder in ("dexart_lite", "benchmarks") for path in sorted((root / folder).rglob("*.py"))
+             if path.name != "registration.py" for m in repeated.finditer(path.read_text())]
+    assert not found, found

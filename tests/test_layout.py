@@ -2,6 +2,7 @@
 (which hide a circle from Python but not from a reader)."""
 
 import ast
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "dexart_lite"
@@ -76,3 +77,37 @@ def test_the_graph_sees_function_level_imports():
 
 def test_no_import_circle_in_the_package():
     assert cycles(import_graph()) == []
+
+
+# The sealed simulator: the PyBullet client lives behind BulletSim (sim.py); an env is read through its public
+# view (``env.state``, ``read_state``, ``evaluate_state``), its underscore attributes stay inside envs/.
+CLIENT = re.compile(r"\bsim\.c\b|\bsim\.client\b|\bself\.c\.\w+\(")
+ENV_PRIVATE = re.compile(r"\b(env|unwrapped|self\.env)\._[a-z]\w*")
+
+
+def sealing_breaches(root: Path) -> list[str]:
+    """``file:line`` of each use of the client outside sim.py and of an env's underscore attribute outside envs/."""
+    found = []
+    for folder in ("dexart_lite", "benchmarks"):
+        for path in sorted((root / folder).rglob("*.py")):
+            rel = path.relative_to(root).as_posix()
+            for number, line in enumerate(path.read_text().splitlines(), 1):
+                if rel != "dexart_lite/sim.py" and CLIENT.search(line):
+                    found.append(f"{rel}:{number}: {line.strip()}")
+                if not rel.startswith("dexart_lite/envs/") and ENV_PRIVATE.search(line):
+                    found.append(f"{rel}:{number}: {line.strip()}")
+    return found
+
+
+def test_only_sim_py_touches_the_client_and_nothing_reads_an_env_s_privates():
+    assert sealing_breaches(PACKAGE.parent) == []
+
+
+def test_the_sealing_check_finds_a_breach(tmp_path):
+    (tmp_path / "dexart_lite").mkdir()
+    (tmp_path / "benchmarks").mkdir()
+    (tmp_path / "dexart_lite" / "sim.py").write_text("self.c.stepSimulation()\n")  # its own client: fine
+    (tmp_path / "dexart_lite" / "robot.py").write_text("x = self.sim.c.getJointInfo(1, 2)\n")
+    (tmp_path / "benchmarks" / "probe.py").write_text("s = env.unwrapped._state\nq = env._t\n")
+    assert [b.split(":")[0] + ":" + b.split(":")[1] for b in sealing_breaches(tmp_path)] == [
+        "dexart_lite/robot.py:1", "benchmarks/probe.py:1", "benchmarks/probe.py:2"]

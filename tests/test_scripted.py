@@ -141,7 +141,7 @@ def test_laptop_expert_is_memoryless():
             assert isinstance(policy.solver, FeedbackLidSolver)
             if t % 4 == 0 or policy.solver.region not in regions:  # a fresh expert reads the object's URDF: not every step
                 regions.add(policy.solver.region)
-                fresh = FeedbackLidSolver(env.unwrapped).act(env.unwrapped._state)
+                fresh = FeedbackLidSolver(env.unwrapped).act(env.unwrapped.state)
                 np.testing.assert_allclose(np.clip(fresh, -1, 1), action, atol=1e-5)  # reset-pose rounding
             obs, _, terminated, truncated, info = env.step(action)
             done, t = terminated or truncated, t + 1

@@ -31,7 +31,7 @@ from dexart_lite.objects import ObjectInfo
 from dexart_lite.robot import (ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, SYNERGIES, Robot, RobotState,
                                synergy_targets)
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
-from dexart_lite.registration import HAND_MODES, HORIZON, OBSERVATIONS  # HORIZON: control steps per episode (the registered max_episode_steps)
+from dexart_lite.registration import HAND_MODES, HORIZON, OBSERVATIONS, TaskSpec  # HORIZON: control steps per episode (the registered max_episode_steps)
 from dexart_lite.sim import BASE_LINK, BulletSim
 from dexart_lite.utils import check_choice
 
@@ -121,9 +121,10 @@ class DexArtEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}
-    # ---- filled in by each task
+    # ---- filled in by each task: its SPEC (registration.SPECS) sets the next four (``__init_subclass__``)
+    SPEC: TaskSpec
     CATEGORY: str = ""
-    ROBOT_BASE: tuple = (-0.5, 0.0, 0.0)  # m, world
+    ROBOT_BASE: tuple = ()  # m, world
     PEDESTAL: tuple | None = None  # (centre, half extents) of the box the robot stands on, m
     CAMERA: CameraPose
     VIEWER: CameraPose
@@ -136,6 +137,13 @@ class DexArtEnv(gym.Env):
     observe_steps: bool = True
     EXTRA_STATE: int = 0  # length of extra_state()
     REBUILD_EVERY: int = 200  # resets between two builds of the simulation (see reset)
+
+    def __init_subclass__(cls, **kwargs):
+        """A task's name, robot base and reset randomisation come from its ``SPEC``, written down once."""
+        super().__init_subclass__(**kwargs)
+        if "SPEC" in cls.__dict__:
+            cls.CATEGORY, cls.ROBOT_BASE = cls.SPEC.name, cls.SPEC.robot_base
+            cls.RAND_POS, cls.RAND_YAW = cls.SPEC.rand_pos, np.deg2rad(cls.SPEC.rand_yaw_deg)
 
     def __init__(self, split: str = "seen", object_names=None, camera=None, num_points: int = 512,
                  imagination: bool = True, point_noise: bool = False, camera_noise: bool = False,
@@ -288,7 +296,7 @@ class DexArtEnv(gym.Env):
         self.sim.restore_state(self._initial_state)
         # restoreState resets the saved contact points but keeps contact manifolds made since (with
         # their warm-start impulses); a collision pass in the restored configuration drops those.
-        self.sim.c.performCollisionDetection()
+        self.sim.detect_collisions()
         self.sim.restore_state(self._initial_state)
         position, yaw = np.add(self.ROBOT_BASE, info.position), info.yaw
         if self.randomize:
@@ -299,8 +307,8 @@ class DexArtEnv(gym.Env):
         self.sensor.reset(rng)
         self._t = 0
         self._base_at_reset = self.objects.base_state()[0]
-        self._state = self._read_state(np.zeros(ACTION_DIM), flange_before=None)
-        info_dict = self._evaluate(self._state)
+        self._state = self.read_state(np.zeros(ACTION_DIM), flange_before=None)
+        info_dict = self.evaluate_state(self._state)
         self._obs = self._observe(self._state, info_dict)
         return self._obs, info_dict
 
@@ -314,8 +322,8 @@ class DexArtEnv(gym.Env):
             self.robot.track_arm((i + 1) * self.sim.dt)
             self.sim.step()
         self._t += 1
-        state = self._read_state(action, flange_before=before.robot.flange_pos, palm_z_prev=before.robot.palm_pos[2])
-        info = self._evaluate(state)
+        state = self.read_state(action, flange_before=before.robot.flange_pos, palm_z_prev=before.robot.palm_pos[2])
+        info = self.evaluate_state(state)
         if state.unstable:  # end the episode; never emit the non-finite reading
             info["reward_terms"] = {k: 0.0 for k in info["reward_terms"]}
             info["success"], info["point_labels"] = False, self._labels
@@ -366,7 +374,17 @@ class DexArtEnv(gym.Env):
             return action
         return np.concatenate([action[:6], self.robot.hand_action(synergy_targets(action[6:]))])
 
-    def _read_state(self, action: np.ndarray, flange_before, palm_z_prev: float | None = None) -> State:
+    @property
+    def state(self) -> State | None:
+        """The simulation as the last ``reset`` or ``step`` read it (None before the first reset): the step
+        count ``t``, the object ``obj``, the part's joint ``q`` / ``qd``, the robot, the contacts. A frozen
+        dataclass: reading it changes nothing. Experts and benchmarks read the env through it."""
+        return self._state
+
+    def read_state(self, action: np.ndarray, flange_before, palm_z_prev: float | None = None) -> State:
+        """A fresh reading of the simulation (it changes nothing): what ``step`` does after the physics.
+        ``action``: the (22,) action just applied; ``flange_before`` / ``palm_z_prev``: the last reading's
+        flange position (m, or None at reset) and palm height (m)."""
         robot = self.robot.read()
         q, qd = self.objects.joint_state()
         base_pos, base_lin, base_ang = self.objects.base_state()
@@ -392,7 +410,8 @@ class DexArtEnv(gym.Env):
             base_pos_at_reset=self._base_at_reset, base_linvel=base_lin, base_angvel=base_ang,
             part_contact=part, body_contact=body, arm_contacts=len(arm_links), unstable=bool(unstable))
 
-    def _evaluate(self, s: State) -> dict:
+    def evaluate_state(self, s: State) -> dict:
+        """Stage, progress, success and the named reward terms of the reading ``s`` (the step's info)."""
         stage, progress, success = self.stage(s), self.progress(s), self.is_success(s)
         terms = self.reward_terms(s, stage, progress, success)
         if self.reward_mode == "shaped":
@@ -455,13 +474,13 @@ class DexArtEnv(gym.Env):
         """
         lo = np.minimum(np.add(self.ROBOT_BASE, self.CROP[0::2]), self._eyes.min(0) - margin)
         hi = np.maximum(np.add(self.ROBOT_BASE, self.CROP[1::2]), self._eyes.max(0) + margin)
-        c, uid = self.sim.c, self.robot.body.uid
-        colour = {v[1]: tuple(v[7]) for v in c.getVisualShapeData(uid)}
-        base, link1 = self.robot.body.link(ARM_LINKS[0]), self.robot.body.link(ARM_LINKS[1])
-        boxes = {link: np.array(c.getAABB(uid, link)) for link in (base, link1)}  # (2, 3) world, m
+        body = self.robot.body
+        colour = self.sim.visual_colours(body)
+        base, link1 = body.link(ARM_LINKS[0]), body.link(ARM_LINKS[1])
+        boxes = {link: np.array(self.sim.aabb(body, link)) for link in (base, link1)}  # (2, 3) world, m
         corners = np.array([[x, y, z] for x in boxes[link1][:, 0] for y in boxes[link1][:, 1] for z in boxes[link1][:, 2]])
         (origin,), (quat,) = self.sim.link_frames(self.robot.body, [link1])  # joint 1's frame
-        axis = pc.quat_to_matrix(quat) @ np.asarray(c.getJointInfo(uid, link1)[13])  # world, unit
+        axis = pc.quat_to_matrix(quat) @ np.asarray(self.sim.joint_info(body, link1)[13])  # world, unit
         along = (corners - origin) @ axis  # (8,) heights along the axis
         radius = np.linalg.norm(corners - origin - along[:, None] * axis, axis=1).max()  # from the axis
         ends = origin + np.outer([along.min(), along.max()], axis)  # (2, 3) the cylinder's end centres
@@ -472,12 +491,12 @@ class DexArtEnv(gym.Env):
 
     def _show_undrawn_links(self, visible: bool) -> None:
         for link, rgba in self._undrawn_links:
-            self.sim.c.changeVisualShape(self.robot.body.uid, link, rgbaColor=rgba if visible else (*rgba[:3], 0.0))
+            self.sim.set_colour(self.robot.body, link, rgba if visible else (*rgba[:3], 0.0))
 
     def _show_scenery(self, visible: bool) -> None:
         self._scenery_hidden = not visible
         for body, rgba in zip(self.scenery, (TABLE_RGBA, PEDESTAL_RGBA)):
-            self.sim.c.changeVisualShape(body.uid, -1, rgbaColor=rgba if visible else (0, 0, 0, 0))
+            self.sim.set_colour(body, BASE_LINK, rgba if visible else (0, 0, 0, 0))
 
     def _camera_pose(self, camera) -> CameraPose:
         if camera is None:

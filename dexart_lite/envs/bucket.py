@@ -35,12 +35,13 @@ import numpy as np
 from dexart_lite.camera import CameraPose
 from dexart_lite.envs import rewards
 from dexart_lite.envs.base import DexArtEnv, State
+from dexart_lite.registration import SPECS
 
 REACH_THRESHOLD = 0.2  # m
 MIN_FINGERS = 3  # of thumb, index, middle, ring on the bail
 STAGE3_PROGRESS = 0.5
-SUCCESS_PROGRESS = 0.7
-SUCCESS_LIFT = 0.25  # m
+SUCCESS_PROGRESS = SPECS["bucket"].success["progress"]
+SUCCESS_LIFT = SPECS["bucket"].success["lift"]  # m
 LIFT_CAP = 0.3  # m
 PENALTY_WEIGHT = 0.1
 
@@ -51,14 +52,11 @@ def lift(s: State) -> float:
 
 
 class BucketEnv(DexArtEnv):
-    CATEGORY = "bucket"
-    ROBOT_BASE = (-0.5, 0.0, 0.3)
+    SPEC = SPECS["bucket"]
     PEDESTAL = ((-0.5, 0.0, 0.15), (0.1, 0.2, 0.15))  # centre, half extents (m)
     CAMERA = CameraPose.look_at(eye=(0.0, 1.0, 0.5), target=(0.0, 0.0, 0.5))
     VIEWER = CameraPose.look_at(eye=(0.55, 0.9, 0.8), target=(-0.15, 0.0, 0.2))
     CROP = (0.1, 2.0, -2.0, 2.0, -0.29, 0.4)
-    RAND_POS = 0.05  # m
-    RAND_YAW = 0.0
     TERMINATE_ON_SUCCESS = False
     # A fresh simulation every episode: the light free-floating bucket resting on the table is the one
     # object that still felt the robot's contact caches of the previous episode (~1e-6 m within 50

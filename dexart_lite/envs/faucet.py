@@ -21,26 +21,23 @@ Stages: 1 reach (dist > 0.2 m), 2 contact (close, not grasping), 3 manipulate (g
 
 from __future__ import annotations
 
-import numpy as np
 
 from dexart_lite.camera import CameraPose
 from dexart_lite.envs import rewards
 from dexart_lite.envs.base import DexArtEnv, State
+from dexart_lite.registration import SPECS
 
 REACH_THRESHOLD = 0.2  # m
 MIN_FINGERS = 2  # finger groups on the handle for a grasp (plus the palm)
-SUCCESS_ANGLE = 1.5  # rad (~86 degrees)
+SUCCESS_ANGLE = SPECS["faucet"].success["angle"]  # rad (~86 degrees)
 PENALTY_WEIGHT = 0.01
 
 
 class FaucetEnv(DexArtEnv):
-    CATEGORY = "faucet"
-    ROBOT_BASE = (-0.5, 0.0, 0.0)
+    SPEC = SPECS["faucet"]
     CAMERA = CameraPose.look_along(eye=(-0.3, 0.6, 0.4), forward=(0.16, -0.7, -0.35), right=(-1.5, -2.0, 0.0))
     VIEWER = CameraPose.look_at(eye=(0.45, 0.75, 0.65), target=(-0.15, 0.0, 0.12))
     CROP = (0.1, 2.0, -1.0, 1.0, 0.0047767, 0.4)
-    RAND_POS = 0.1  # m
-    RAND_YAW = np.deg2rad(90)
 
     def grasped(self, s: State) -> bool:
         return s.n_fingers >= MIN_FINGERS and s.palm_contact

@@ -23,16 +23,15 @@ Stages: 1 reach (dist > 0.2 m), 2 contact (close, not grasping), 3 manipulate (g
 
 from __future__ import annotations
 
-import numpy as np
 
 from dexart_lite.camera import CameraPose
 from dexart_lite.envs import rewards
 from dexart_lite.envs.base import DexArtEnv, State
+from dexart_lite.registration import SPECS
 
 REACH_THRESHOLD = 0.2  # m
 MIN_FINGERS = 2
 PALM_REQUIRED = True
-SUCCESS_PROGRESS = 0.95
 CLOSING_WEIGHT = 0.5  # reward per unit of negative progress before the grasp
 PENALTY_WEIGHT = 0.01
 
@@ -43,13 +42,10 @@ def lid_progress(s: State) -> float:
 
 
 class LaptopEnv(DexArtEnv):
-    CATEGORY = "laptop"
-    ROBOT_BASE = (-0.5, 0.0, 0.0)
+    SPEC = SPECS["laptop"]
     CAMERA = CameraPose.look_at(eye=(0.0, 1.0, 0.5), target=(0.0, 0.0, 0.5))
     VIEWER = CameraPose.look_at(eye=(0.45, 0.75, 0.65), target=(-0.15, 0.0, 0.12))
     CROP = (0.1, 1.0, -1.0, 2.0, 0.0047767, 0.6)
-    RAND_POS = 0.1  # m
-    RAND_YAW = np.deg2rad(60)
     REACH_THRESHOLD, MIN_FINGERS, PALM_REQUIRED, PENALTY_WEIGHT = REACH_THRESHOLD, MIN_FINGERS, PALM_REQUIRED, PENALTY_WEIGHT
 
     def grasped(self, s: State) -> bool:
@@ -62,7 +58,7 @@ class LaptopEnv(DexArtEnv):
         return rewards.reach_stage(s, self.REACH_THRESHOLD, self.grasped(s))
 
     def is_success(self, s: State) -> bool:
-        return self.progress(s) > SUCCESS_PROGRESS and self.stage(s) == 3
+        return self.progress(s) > self.SPEC.success["progress"] and self.stage(s) == 3
 
     def reward_terms(self, s: State, stage: int, progress: float, success: bool) -> dict[str, float]:
         if stage == 3:

@@ -18,10 +18,10 @@ Reward terms: reach, contact, arm_contact, progress, bonus, penalty (see ``lapto
 
 from __future__ import annotations
 
-import numpy as np
 
 from dexart_lite.camera import CameraPose
 from dexart_lite.envs.laptop import LaptopEnv
+from dexart_lite.registration import SPECS
 
 REACH_THRESHOLD = 0.1  # m
 MIN_FINGERS = 2
@@ -30,12 +30,9 @@ PENALTY_WEIGHT = 0.005
 
 
 class ToiletEnv(LaptopEnv):
-    CATEGORY = "toilet"
-    ROBOT_BASE = (-0.5, 0.0, 0.4)
+    SPEC = SPECS["toilet"]
     PEDESTAL = ((-0.5, 0.0, 0.2), (0.1, 0.2, 0.2))  # centre, half extents (m)
     CAMERA = CameraPose.look_at(eye=(0.0, 1.0, 0.5), target=(0.0, 0.0, 0.5))
     VIEWER = CameraPose.look_at(eye=(0.7, 1.0, 1.0), target=(-0.1, 0.0, 0.35))
     CROP = (0.1, 2.0, -2.0, 2.0, -0.3, 0.8)
-    RAND_POS = 0.2  # m
-    RAND_YAW = np.deg2rad(45)
     REACH_THRESHOLD, MIN_FINGERS, PALM_REQUIRED, PENALTY_WEIGHT = REACH_THRESHOLD, MIN_FINGERS, PALM_REQUIRED, PENALTY_WEIGHT

@@ -26,14 +26,16 @@ from dexart_lite.experts.base import PRIVILEGED_DIM, PartFrame, Solver
 from dexart_lite.experts.bucket import BucketSolver
 from dexart_lite.experts.faucet import FaucetSolver
 from dexart_lite.experts.laptop import FeedbackLidSolver
-from dexart_lite.experts.lid import LidSolver
+from dexart_lite.registration import SPECS
 from dexart_lite.robot import synergy_action
 from dexart_lite.utils import check_choice
 
 # Laptop and toilet: the state-feedback lid expert (imitable, see FeedbackLidSolver). The phase-machine
 # LidSolver it builds on opened every toilet (1.00 / 1.00) but its students failed (0.08 / 0.03, 3 seeds):
 # its decisions hinge on counters no observation shows and its side of approach flips with the placement.
-SOLVERS = {"laptop": FeedbackLidSolver, "toilet": FeedbackLidSolver, "faucet": FaucetSolver, "bucket": BucketSolver}
+# Each task's expert is named in its spec (registration.SPECS).
+SOLVERS = {task: {c.__name__: c for c in (BucketSolver, FaucetSolver, FeedbackLidSolver)}[spec.expert]
+           for task, spec in SPECS.items()}
 
 
 class ScriptedPolicy:
@@ -51,12 +53,12 @@ class ScriptedPolicy:
         self.privileged: np.ndarray | None = None
 
     def __call__(self, obs=None) -> np.ndarray:
-        env = self.env
-        key = (id(env._state.obj), env._base_at_reset.tobytes())
-        if env._t == 0 or self.solver is None or key != self._episode:
+        env, state = self.env, self.env.state
+        key = (id(state.obj), state.base_pos_at_reset.tobytes())
+        if state.t == 0 or self.solver is None or key != self._episode:
             self.solver, self._episode = SOLVERS[env.CATEGORY](env), key
-        self.privileged = self.solver.privileged(env._state)  # of the state this action answers
-        return np.clip(self.solver.act(env._state), -1.0, 1.0)
+        self.privileged = self.solver.privileged(state)  # of the state this action answers
+        return np.clip(self.solver.act(state), -1.0, 1.0)
 
 
 class SynergyScriptedPolicy(ScriptedPolicy):
@@ -69,5 +71,5 @@ class SynergyScriptedPolicy(ScriptedPolicy):
         return np.concatenate([a[:6], synergy_action(self.env.robot.hand_targets(a[6:]))])  # (9,)
 
 
-__all__ = ["SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "FaucetSolver", "FeedbackLidSolver", "LidSolver", "PartFrame",
+__all__ = ["SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "FaucetSolver", "FeedbackLidSolver", "PartFrame",
            "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]

@@ -40,7 +40,7 @@ class PartFrame:
         if q is None:
             return now
         axis_world = now.R @ self.axis_local
-        return Pose(now.p, rot_axis(axis_world, q - env._state.q) @ now.R)
+        return Pose(now.p, rot_axis(axis_world, q - env.state.q) @ now.R)
 
 
 # ----------------------------------------------------------------------------- the solvers

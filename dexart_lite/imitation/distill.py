@@ -47,7 +47,7 @@ from dexart_lite.imitation.report import plot_rounds, write_report
 from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label,
                                              encoder_of, input_key, make_actor_critic, trunk_of)
 from dexart_lite.models.pointnet import load_encoder, save_encoder
-from dexart_lite.registration import TASKS
+from dexart_lite.registration import SPECS, TASKS
 from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate, record_gif
@@ -66,7 +66,7 @@ CHECKPOINT = "checkpoint.pt"
 # mask cut them from 0.58 / 0.40 to 0.28 / 0.25 (3 seeds; turning a handle may need its speed), so
 # the other tasks keep the full state (toilet and bucket are not measured).
 # Evidence: benchmarks/results/distill_{laptop,laptop_novel,faucet,faucet_novel}.json.
-DROP_STATE = {"laptop": "time,palm_velocity"}
+DROP_STATE = {t: spec.student_drops for t, spec in SPECS.items() if spec.student_drops}  # registration.SPECS
 
 
 @dataclass

@@ -29,13 +29,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dexart_lite import paths
+from dexart_lite.registration import SPECS, TASKS
 from dexart_lite.utils import check_choice
 
-CATEGORIES = ("faucet", "bucket", "laptop", "toilet")
+CATEGORIES = TASKS
 SPLITS = ("seen", "unseen", "seen_half")  # seen_half = the first 5/5/5/8 seen objects (by index)
-HALF_SIZES = {"faucet": 5, "bucket": 5, "laptop": 5, "toilet": 8}
-ROBOT_BASE = {"faucet": (-0.5, 0, 0), "laptop": (-0.5, 0, 0), "bucket": (-0.5, 0, 0.3),
-              "toilet": (-0.5, 0, 0.4)}  # world, metres (DexArt)
+HALF_SIZES = {c: SPECS[c].half for c in CATEGORIES}  # registration.SPECS: the tasks' facts, written once
+ROBOT_BASE = {c: SPECS[c].robot_base for c in CATEGORIES}  # world, metres (DexArt)
 
 
 @dataclass(frozen=True)

@@ -25,12 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.registration import SPECS
 from dexart_lite.sim import BulletClient, pybullet
 
 DT = 1.0 / 240.0  # s
-FAUCET_SUCCESS = 1.5  # rad, |q| beyond this counts (DexArt)
-BUCKET_UPRIGHT = 0.3 * math.pi / 2  # rad, |q| below this is DexArt's bucket progress > 0.7
-BUCKET_LIFT = 0.25  # m, DexArt's bucket success height
+FAUCET_SUCCESS = SPECS["faucet"].success["angle"]  # rad, |q| beyond this counts (DexArt)
+BUCKET_UPRIGHT = 0.3 * math.pi / 2  # rad, |q| below this is DexArt's bucket progress > 0.7 (SPECS' threshold)
+BUCKET_LIFT = SPECS["bucket"].success["lift"]  # m, DexArt's bucket success height
 DRIVE_TORQUE = {"faucet": 1.0, "laptop": 2.0, "toilet": 2.0, "bucket": 0.5}  # N*m on top of friction
 LIFT_FORCE = 60.0  # N, cap of the point-to-point "hand" constraint
 LIFT_HEIGHT = 0.5  # m, how far the hand pulls the bail apex up

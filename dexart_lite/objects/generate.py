@@ -39,7 +39,6 @@ SPECS: dict[str, CategorySpec] = {"faucet": faucet.SPEC, "bucket": bucket.SPEC, 
                                   "toilet": toilet.SPEC}
 SPLIT_SIZES = {"faucet": {"seen": 11, "unseen": 7}, "bucket": {"seen": 11, "unseen": 8},
                "laptop": {"seen": 11, "unseen": 6}, "toilet": {"seen": 17, "unseen": 11}}
-HALF_SIZES = {"faucet": 5, "bucket": 5, "laptop": 5, "toilet": 8}  # DexArt's "half" seen sets
 DUPLICATE_EPS = 0.08  # normalised parameter distance below which a draw is a near-duplicate
 MAX_ATTEMPTS = 200
 NAME_PATTERN = re.compile(r"^(faucet|bucket|laptop|toilet)_[0-9a-f]{10}$")

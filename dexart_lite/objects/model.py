@@ -114,10 +114,6 @@ class ObjectModel:
         self.body.pieces = geometry.translate(self.body.pieces, offset)
         self.joint.xyz = np.asarray(self.joint.xyz, dtype=float) + offset
 
-    def part_pieces_in_body(self, q: float) -> list[trimesh.Trimesh]:
-        """The functional part's pieces, posed at joint angle ``q``, in the body frame."""
-        return geometry.transform(self.part.pieces, self.joint.part_to_body(q))
-
     def max_gravity_torque(self, samples: int = 181) -> float:
         """Largest gravity torque (N*m) of the part about its joint axis over the joint range."""
         props = self.part.mass_properties()

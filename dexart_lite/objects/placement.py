@@ -23,15 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dexart_lite.objects import geometry
+from dexart_lite.objects import ROBOT_BASE, geometry
 from dexart_lite.objects.model import ObjectModel
+from dexart_lite.registration import SPECS
 
-# Robot base in world coordinates (m), DexArt's values; the robot faces +x.
-ROBOT_BASE = {"faucet": (-0.5, 0.0, 0.0), "laptop": (-0.5, 0.0, 0.0), "bucket": (-0.5, 0.0, 0.3),
-              "toilet": (-0.5, 0.0, 0.4)}
-# DexArt's reset randomisation (task_setting.RANDOM_CONFIG): position noise U[0, r)^3 (m), yaw +-deg.
-RAND_POS = {"faucet": 0.1, "bucket": 0.05, "laptop": 0.1, "toilet": 0.2}
-RAND_YAW_DEG = {"faucet": 90.0, "bucket": 0.0, "laptop": 60.0, "toilet": 45.0}
+# DexArt's reset randomisation (task_setting.RANDOM_CONFIG), from registration.SPECS: position noise
+# U[0, r)^3 (m), yaw +-deg; the robot base (ROBOT_BASE, world, m) faces +x.
+RAND_POS = {c: SPECS[c].rand_pos for c in SPECS}
+RAND_YAW_DEG = {c: SPECS[c].rand_yaw_deg for c in SPECS}
 SHOULDER_HEIGHT = 0.267  # m, xArm6 joint2 above the robot base (assets.md section 1.2)
 REACH = 0.62  # m, usable distance from the shoulder
 MIN_FRONT = 0.25  # m, the grasp point must be at least this far in front of the robot base

@@ -158,7 +158,8 @@ def readme_text(root: Path) -> str:
         "",
         "| category | robot base (world, m) | r (m) | d (deg) |",
         "|---|---|---|---|",
-        *[f"| {c} | {tuple(ROBOT_BASE[c])} | {RAND_POS[c]:g} | {RAND_YAW_DEG[c]:g} |" for c in CATEGORIES],
+        *[f"| {c} | ({', '.join(f'{v:g}' for v in ROBOT_BASE[c])}) | {RAND_POS[c]:g} | {RAND_YAW_DEG[c]:g} |"
+          for c in CATEGORIES],
         "",
         "* z = -robot_base_z: the object stands on the table (top at world z = 0).",
         "* y = -r / 2, so the one-sided y noise is centred on the robot's axis.",

@@ -256,7 +256,7 @@ def _bounding_sphere(sim, body) -> tuple[np.ndarray, float]:
     """Centre (3,) and radius (m) of the axis-aligned bounding box of every link of ``body``."""
     lows, highs = [], []
     for link in [-1, *body.joints.values()]:
-        low, high = sim.c.getAABB(body.uid, link)
+        low, high = sim.aabb(body, link)
         lows.append(low)
         highs.append(high)
     low, high = np.min(lows, axis=0), np.max(highs, axis=0)

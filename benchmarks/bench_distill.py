@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 import dexart_lite
-from dexart_lite.imitation.distill import METHODS, DistillConfig, distill, same_settings
+from dexart_lite.imitation.distill import METHODS, DistillConfig
+from dexart_lite.study import run_arm
 from dexart_lite.utils import command_line, fast_mode, machine_info, parse_overrides, write_json
 
 RESULTS = Path(__file__).parent / "results"
@@ -37,22 +37,12 @@ PAPER_RL_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop"
 
 
 def run_seed(cfg: DistillConfig) -> dict:
-    """One seed: run it, or read back a finished run with the same settings."""
-    out = Path(cfg.out)
-    ckpt_log, unseen = out / "run.json", out / "eval_unseen.json"
-    if unseen.exists() and ckpt_log.exists():
-        done = json.loads(ckpt_log.read_text())
-        if same_settings(done["config"], cfg):
-            print(f"{out}: finished before, read back")
-            return done
-        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --runs folder")
-    result = distill(cfg)
-    keep = {k: result[k] for k in ("seen_success", "unseen_success", "expert_frames", "student_frames",
-                                   "wall_time_s", "history")}
-    keep["mean_max_stage"] = {split: r["mean_max_stage"] for split, r in result["eval"].items()}
-    keep["config"] = asdict(cfg)
-    write_json(ckpt_log, keep)
-    return keep
+    """One seed through the one multi-seed runner (``study.run_arm``): trained, or read back when its folder
+    holds a finished run with the same settings."""
+    result = run_arm(cfg)
+    if result["resumed"]:
+        print(f"{cfg.out}: finished before, read back")
+    return result
 
 
 def main(argv=None) -> dict:

@@ -410,19 +410,97 @@ def collect_dagger(env, expert: Policy, student: Policy, episodes: list[tuple[in
 
 
 # ----------------------------------------------------------------------------- the run
-def distill(cfg: DistillConfig) -> dict:
-    """Demonstrations -> BC -> DAgger rounds -> checkpoint, evaluation, report; see the module docstring."""
-    import logging
+class StudentRun:
+    """One distillation's moving parts: the DAgger env, the student (and its EMA and auxiliary head), the
+    aggregate buffer, the per-round log and the progress bar; ``distill`` calls its steps in order."""
 
-    from torchrl.data import LazyMemmapStorage, ReplayBuffer
+    def __init__(self, cfg: DistillConfig, out: Path, start: float, device, demos: TensorDictBase, manifest: dict):
+        from torchrl.data import LazyMemmapStorage, ReplayBuffer
 
-    logging.getLogger("torchrl").setLevel(logging.WARNING)  # its INFO line on every new storage breaks the bar
+        from dexart_lite.envs import make
 
-    from dexart_lite.envs import make
-    from dexart_lite.experts import ScriptedPolicy
+        self.cfg, self.out, self.start, self.device, self.manifest = cfg, out, start, device, manifest
+        self.names = cfg.object_names()
+        self.budget = 60 * cfg.max_minutes if cfg.max_minutes else None
+        # collection (DAgger) env: evaluation's settings, plus random viewpoints if asked for
+        self.env = make(cfg.task, split=cfg.split, object_names=self.names, view_range=cfg.view_range_degrees(),
+                        **cfg.env_kwargs())
+        space = self.env.observation_space
+        self.dims = {"num_points": space["point_cloud"].shape[0], "state_dim": space["state"].shape[0],
+                     "action_dim": self.env.action_space.shape[0], "head": cfg.head_widths(), "normalize": cfg.normalize}
+        self.actor_critic, self.ema, self.aux_head = build_student(cfg, self.dims, demos)
+        self.student_net = self.ema.module if self.ema is not None else self.actor_critic
+        self.buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
+        self.history: list[dict] = []
+        self.frames = {"expert": manifest["samples"], "student": 0}
+        self.rounds = cfg.rounds if cfg.method == "dagger" else 0
+        # with a time budget the bar counts seconds of it, so its ETA is the budget's end
+        budget = self.budget
+        self.bar = tqdm(total=round(budget) if budget else 1 + self.rounds, unit="s" if budget else "round",
+                        initial=min(round(time.perf_counter() - start), round(budget)) if budget else 0,
+                        desc=f"distill {cfg.task} ({cfg.method}" + (f", {cfg.max_minutes:g} min budget)" if budget else ")"),
+                        disable=not cfg.progress, dynamic_ncols=True)
 
-    validate(cfg)
-    start = time.perf_counter()
+    def train(self, epochs: int) -> list[float]:
+        return train_student(self.actor_critic, self.buffer[:], self.cfg, epochs, self.aux_head, self.ema, self.device)
+
+    def log_round(self, phase: str, beta: float, episodes: int, summary: dict, new_samples: int, losses: list[float],
+                  expert_share: float, collect_s: float, train_s: float) -> None:
+        """One row of ``log.csv`` (and the checkpoint rewritten); the progress bar moves on."""
+        row = {"round": len(self.history), "phase": phase, "beta": beta, "episodes": episodes,
+               "collect_success": summary["success_rate"], "collect_max_stage": summary["mean_max_stage"],
+               "expert_share": expert_share, "new_samples": new_samples, "buffer": len(self.buffer),
+               "expert_frames": self.frames["expert"], "student_frames": self.frames["student"],
+               "frames": self.frames["expert"] + self.frames["student"], "loss_first": losses[0], "loss": losses[-1],
+               "collect_s": collect_s, "train_s": train_s, "wall_s": time.perf_counter() - self.start}
+        self.history.append(row)
+        write_log(self.out / "log.csv", self.history)
+        save_student(self.out / CHECKPOINT, self.student_net, self.cfg, self.dims, self.frames, self.history)
+        self.bar.update(min(round(time.perf_counter() - self.start), self.bar.total) - self.bar.n if self.budget else 1)
+        self.bar.set_postfix(loss=f"{row['loss']:.4f}", succ=f"{row['collect_success']:.2f}", frames=row["frames"])
+
+    def behaviour_cloning(self, demos: TensorDictBase) -> None:
+        """Step 2: the student regresses the expert's labels on the demonstrations."""
+        tick, manifest = time.perf_counter(), self.manifest
+        self.buffer.extend(demos)
+        losses = self.train(self.cfg.epochs)
+        expert = {"success_rate": manifest["expert_success_rate"], "mean_max_stage": manifest["expert_mean_max_stage"]}
+        self.log_round("bc", 1.0, len(manifest["episodes"]), expert, manifest["samples"], losses, 1.0,
+                       0.0 if self.cfg.demos else manifest["wall_time_s"], time.perf_counter() - tick)
+
+    def dagger(self) -> None:
+        """Step 3: rounds in which the student drives (with probability 1 - beta) and the expert labels."""
+        from dexart_lite.experts import ScriptedPolicy
+
+        cfg, manifest = self.cfg, self.manifest
+        scripted, student = ScriptedPolicy(self.env), policy_function(self.student_net)
+        episodes_done = len(manifest["episodes"])
+        index_names = manifest["objects"] + [n for n in self.names if n not in manifest["objects"]]  # "object" index
+        for r in range(1, self.rounds + 1):
+            if self.budget and time.perf_counter() - self.start > self.budget:
+                break
+            tick = time.perf_counter()
+            beta = cfg.beta * cfg.beta_decay ** (r - 1)
+            episodes = episode_list(self.names, cfg.episodes_per_round, np.random.default_rng([cfg.seed, 2, r]))
+            samples, results, share = collect_dagger(self.env, scripted, student, episodes, beta,
+                                                     np.random.default_rng([cfg.seed, 3, r]), index_names,
+                                                     episodes_done, cfg.student_noise)
+            episodes_done += len(episodes)
+            self.frames["student"] += samples.batch_size[0]
+            self.buffer.extend(samples)
+            collected = time.perf_counter()
+            losses = self.train(cfg.epochs_per_round)
+            self.log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0], losses,
+                           share, collected - tick, time.perf_counter() - collected)
+
+    def close(self) -> None:
+        self.bar.close()
+        self.env.close()
+        shutil.rmtree(self.out / "buffer", ignore_errors=True)
+
+
+def open_distill_run(cfg: DistillConfig) -> tuple[Path, Path]:
+    """(run folder, demonstrations folder), refusing a folder that holds a run."""
     out = Path(cfg.out)
     if (out / CHECKPOINT).exists():
         raise ValueError(f"{out} already holds a run; choose another --out or delete it")
@@ -430,92 +508,34 @@ def distill(cfg: DistillConfig) -> dict:
     if cfg.demos:
         check_demos(read_manifest(demo_path), cfg)
     out.mkdir(parents=True, exist_ok=True)
-    names = cfg.object_names()
-    budget = 60 * cfg.max_minutes if cfg.max_minutes else None
-    device = resolve_device(cfg.device, log=tqdm.write)  # where the student trains
+    return out, demo_path
 
+
+def distill(cfg: DistillConfig) -> dict:
+    """Demonstrations -> BC -> DAgger rounds -> checkpoint, evaluation, report; see the module docstring."""
+    import logging
+
+    logging.getLogger("torchrl").setLevel(logging.WARNING)  # its INFO line on every new storage breaks the bar
+    validate(cfg)
+    start = time.perf_counter()
+    out, demo_path = open_distill_run(cfg)
+    device = resolve_device(cfg.device, log=tqdm.write)  # where the student trains
     with torch_threads(cfg.threads or os.cpu_count()):
         torch.manual_seed(cfg.seed)
         # ---- 1. demonstrations (the expert drives, with noise)
         if not cfg.demos:
             collect_demos(cfg.task, cfg.split, cfg.demo_episodes_per_object, cfg.demo_noise, cfg.seed, demo_path,
-                          cfg.num_points, cfg.max_episode_steps, names, cfg.progress, cfg.camera_noise,
+                          cfg.num_points, cfg.max_episode_steps, cfg.object_names(), cfg.progress, cfg.camera_noise,
                           cfg.imagination, cfg.view_range_degrees(), cfg.encoder == "depth_cnn")
-        manifest = read_manifest(demo_path)
-        demos = load_demos(demo_path)
-
-        # collection (DAgger) env: evaluation's settings, plus random viewpoints if asked for
-        env = make(cfg.task, split=cfg.split, object_names=names, view_range=cfg.view_range_degrees(),
-                   **cfg.env_kwargs())
-        dims = {"num_points": env.observation_space["point_cloud"].shape[0],
-                "state_dim": env.observation_space["state"].shape[0], "action_dim": env.action_space.shape[0],
-                "head": cfg.head_widths(), "normalize": cfg.normalize}
-        actor_critic, ema, aux_head = build_student(cfg, dims, demos)
-        student_net = ema.module if ema is not None else actor_critic
-        buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
-        history: list[dict] = []
-        frames = {"expert": manifest["samples"], "student": 0}
-
-        def log_round(phase: str, beta: float, episodes: int, summary: dict, new_samples: int, losses: list[float],
-                      expert_share: float, collect_s: float, train_s: float) -> dict:
-            row = {"round": len(history), "phase": phase, "beta": beta, "episodes": episodes,
-                   "collect_success": summary["success_rate"], "collect_max_stage": summary["mean_max_stage"],
-                   "expert_share": expert_share, "new_samples": new_samples, "buffer": len(buffer),
-                   "expert_frames": frames["expert"], "student_frames": frames["student"],
-                   "frames": frames["expert"] + frames["student"], "loss_first": losses[0], "loss": losses[-1],
-                   "collect_s": collect_s, "train_s": train_s, "wall_s": time.perf_counter() - start}
-            history.append(row)
-            write_log(out / "log.csv", history)
-            save_student(out / CHECKPOINT, student_net, cfg, dims, frames, history)
-            return row
-
-        rounds = cfg.rounds if cfg.method == "dagger" else 0
-        # with a time budget the bar counts seconds of it, so its ETA is the budget's end
-        bar = tqdm(total=round(budget) if budget else 1 + rounds, unit="s" if budget else "round",
-                   initial=min(round(time.perf_counter() - start), round(budget)) if budget else 0,
-                   desc=f"distill {cfg.task} ({cfg.method}" + (f", {cfg.max_minutes:g} min budget)" if budget else ")"),
-                   disable=not cfg.progress, dynamic_ncols=True)
-
-        def advance(row: dict) -> None:
-            bar.update(min(round(time.perf_counter() - start), bar.total) - bar.n if budget else 1)
-            bar.set_postfix(loss=f"{row['loss']:.4f}", succ=f"{row['collect_success']:.2f}", frames=row["frames"])
-
+        manifest, demos = read_manifest(demo_path), load_demos(demo_path)
+        run = StudentRun(cfg, out, start, device, demos, manifest)
         try:
-            # ---- 2. behaviour cloning on the demonstrations
-            tick = time.perf_counter()
-            buffer.extend(demos)
-            losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs, aux_head, ema, device)
-            expert = {"success_rate": manifest["expert_success_rate"],
-                      "mean_max_stage": manifest["expert_mean_max_stage"]}
-            advance(log_round("bc", 1.0, len(manifest["episodes"]), expert, manifest["samples"], losses, 1.0,
-                              0.0 if cfg.demos else manifest["wall_time_s"], time.perf_counter() - tick))
-
-            # ---- 3. DAgger: the student drives (with probability 1 - beta), the expert labels
-            scripted, student = ScriptedPolicy(env), policy_function(student_net)
-            episodes_done = len(manifest["episodes"])
-            index_names = manifest["objects"] + [n for n in names if n not in manifest["objects"]]  # "object" index
-            for r in range(1, rounds + 1):
-                if budget and time.perf_counter() - start > budget:
-                    break
-                tick = time.perf_counter()
-                beta = cfg.beta * cfg.beta_decay ** (r - 1)
-                episodes = episode_list(names, cfg.episodes_per_round, np.random.default_rng([cfg.seed, 2, r]))
-                samples, results, share = collect_dagger(env, scripted, student, episodes, beta,
-                                                         np.random.default_rng([cfg.seed, 3, r]), index_names,
-                                                         episodes_done, cfg.student_noise)
-                episodes_done += len(episodes)
-                frames["student"] += samples.batch_size[0]
-                buffer.extend(samples)
-                collected = time.perf_counter()
-                losses = train_student(actor_critic, buffer[:], cfg, cfg.epochs_per_round, aux_head, ema,
-                                       device)
-                advance(log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0],
-                                  losses, share, collected - tick, time.perf_counter() - collected))
+            run.behaviour_cloning(demos)  # ---- 2.
+            run.dagger()  # ---- 3.
         finally:
-            bar.close()
-            env.close()
-            shutil.rmtree(out / "buffer", ignore_errors=True)
-        ckpt = save_student(out / CHECKPOINT, student_net, cfg, dims, frames, history)
+            run.close()
+        student_net, frames, history = run.student_net, run.frames, run.history
+        ckpt = save_student(out / CHECKPOINT, student_net, cfg, run.dims, frames, history)
         # the PointNet alone, for `dexart-lite train --pretrained` (the 2-D baseline's CNN has no such use)
         encoder = None if cfg.encoder == "depth_cnn" else save_encoder(encoder_of(student_net), out / "encoder.pt")
 
@@ -530,9 +550,9 @@ def distill(cfg: DistillConfig) -> dict:
     wall = time.perf_counter() - start
     report = write_report(out / "report.md", cfg, manifest, history, evals, curve, wall, gif)
     by_split = {e["split"]: e for e in evals}
-    return {"checkpoint": str(ckpt), "encoder": str(encoder) if encoder else None, "report": str(report), "curve": str(curve), "gif": gif,
-            "log": str(out / "log.csv"), "demos": str(demo_path), "device": device.type,
-            "seen_success": by_split["seen"]["success_rate"] if evals else None,
+    return {"checkpoint": str(ckpt), "encoder": str(encoder) if encoder else None, "report": str(report),
+            "curve": str(curve), "gif": gif, "log": str(out / "log.csv"), "demos": str(demo_path),
+            "device": device.type, "seen_success": by_split["seen"]["success_rate"] if evals else None,
             "unseen_success": by_split["unseen"]["success_rate"] if evals else None,
             "expert_frames": frames["expert"], "student_frames": frames["student"], "wall_time_s": wall,
             "eval": by_split, "history": history}

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import torch
 
-from dexart_lite.imitation.demos import collect_demos, load_demos, read_manifest
+from dexart_lite.demos import collect_demos, load_demos, read_manifest
 from dexart_lite.imitation.distill import DistillConfig, build_student, train_student
 from dexart_lite.models import pointnet
 from dexart_lite.models.pointnet import ENCODER_SIZES

@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from dexart_lite.envs import make
-from dexart_lite.imitation.demos import episode_list
+from dexart_lite.demos import episode_list
 from dexart_lite.models.pointnet import PointNetEncoder
 from dexart_lite.pointcloud import LABELS
 from dexart_lite.rollout import noisy, run_episodes

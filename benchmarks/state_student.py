@@ -25,7 +25,7 @@ import torch
 
 import dexart_lite
 from dexart_lite.envs import make
-from dexart_lite.imitation.demos import episode_list
+from dexart_lite.demos import episode_list
 from dexart_lite.rollout import noisy, per_object_summary, run_episodes
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json

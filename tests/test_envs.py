@@ -424,8 +424,9 @@ def test_each_task_spec_is_what_the_env_the_catalog_and_the_experts_use():
 def test_no_module_writes_a_task_fact_down_again():
     """The facts of registration.SPECS are assigned nowhere else: a literal robot base, randomisation, split
     size, success threshold, expert table, student mask or state size elsewhere fails here."""
-    repeated = re.compile(r"^\s*(ROBOT_BASE|RAND_POS|RAND_YAW(_DEG)?|HALF_SIZES|SUCCESS_\w+|FAUCET_SUCCESS|BUCKET_LIFT|"
-                          r"DROP_STATE|SOLVERS)\s*=\s*([-\d(\[\"]|\{\s*\"|np\.deg2rad\(\d)|\b3[23] if .*bucket", re.M)
+    names = r"ROBOT_BASE|RAND_POS|RAND_YAW(_DEG)?|HALF_SIZES|SPLIT_SIZES|SUCCESS_\w+|FAUCET_SUCCESS|BUCKET_LIFT|DROP_STATE|SOLVERS"
+    literal = r"[-\d(\[\"]|\{\s*\"|np\.deg2rad\(\d"  # a number, tuple, list, string, dict literal or degrees
+    repeated = re.compile(rf"^\s*({names})\s*=\s*({literal})|\b3[23] if .*bucket", re.M)
     root = Path(__file__).resolve().parent.parent
     found = [f"{path.relative_to(root)}: {m.group(0).strip()}"
              for folder in ("dexart_lite", "benchmarks") for path in sorted((root / folder).rglob("*.py"))

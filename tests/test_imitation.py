@@ -20,8 +20,8 @@ from dexart_lite import cli
 from dexart_lite import objects as objects_lib
 from dexart_lite import experts
 from dexart_lite.envs import make
-from dexart_lite.imitation import demos as demos_lib
-from dexart_lite.imitation.demos import collect_demos, load_demos
+from dexart_lite import demos as demos_lib
+from dexart_lite.demos import collect_demos, load_demos
 from dexart_lite.imitation.distill import (DistillConfig, collect_dagger, distill, same_settings, train_student,
                                           validate)
 from dexart_lite.models.actor_critic import action_log_std, make_actor_critic, trunk_of

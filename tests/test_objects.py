@@ -415,3 +415,13 @@ def test_list_json_cli(capsys):
     assert all({"category", "split", "name", "template", "dimensions"} <= set(row) for row in rows)
     assert cli.main(["objects", "list", "--split", "everything"]) == 2
     assert "valid choices: seen, unseen, seen_half" in capsys.readouterr().err
+
+
+def test_the_objects_readme_is_its_template_filled_from_the_committed_objects():
+    """urdf/objects/README.md is generated (objects/README.template.md + the numbers of params.json and
+    checks.json): a hand edit, or objects that changed without a regenerated README, fails here."""
+    from dexart_lite import paths
+    from dexart_lite.objects import readme
+
+    root = paths.objects_dir()
+    assert readme.readme_text(root) == (root / "README.md").read_text()

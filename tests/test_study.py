@@ -245,7 +245,7 @@ def test_depth_image_student_the_2d_baseline(tmp_path):
     cfg = tiny_distill_config(tmp_path, encoder="depth_cnn", rounds=1, image_shift=4)  # DrQ shifts in training
     result = distill_lib.distill(cfg)
     assert result["encoder"] is None  # no PointNet to save on its own
-    from dexart_lite.imitation.demos import load_demos
+    from dexart_lite.demos import load_demos
 
     demos = load_demos(tmp_path / "run" / "demos")
     assert demos["depth_image"].shape[1:] == (64, 64)

@@ -42,7 +42,7 @@ from torchrl.modules import ActorValueOperator
 from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.imitation.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
+from dexart_lite.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
 from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label,
                                              encoder_of, input_key, make_actor_critic, trunk_of)
@@ -50,7 +50,7 @@ from dexart_lite.models.pointnet import load_encoder, save_encoder
 from dexart_lite.registration import SPECS, TASKS
 from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
-from dexart_lite.rl.evaluate import evaluate, record_gif
+from dexart_lite.rl.evaluate import evaluate_splits, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes
 from dexart_lite.utils import DEVICES, check_choice, resolve_device, write_json
 
@@ -540,7 +540,7 @@ def distill(cfg: DistillConfig) -> dict:
         encoder = None if cfg.encoder == "depth_cnn" else save_encoder(encoder_of(student_net), out / "encoder.pt")
 
         # ---- 4. evaluation on seen and unseen objects, GIF, curve, report
-        evals = evaluate_student(student_net, cfg, out)
+        evals = evaluate_splits(student_net, cfg, out)
         gif = None
         if cfg.gif:
             unseen = objects_lib.list_objects(cfg.task, "unseen")[0].name
@@ -585,16 +585,6 @@ def write_log(path: Path, history: list[dict]) -> Path:
         writer.writeheader()
         writer.writerows(history)
     return path
-
-
-def evaluate_student(actor_critic: ActorValueOperator, cfg: DistillConfig, out: Path) -> list[dict]:
-    """``rl.evaluate.evaluate`` on the seen and the unseen objects; writes ``eval_<split>.json``."""
-    evals = []
-    for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
-        result = evaluate(actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
-        write_json(out / f"eval_{split}.json", result)
-        evals.append(result)
-    return evals
 
 
 # ----------------------------------------------------------------------------- command line

@@ -99,7 +99,7 @@ def _generate(args) -> int:
     objects._catalog.cache_clear()
     if set(categories) == set(objects.CATEGORIES) or (root / "README.md").exists():
         try:
-            (root / "README.md").write_text(readme.readme_text(root) + "\n")
+            (root / "README.md").write_text(readme.readme_text(root))
             print(f"wrote {root / 'README.md'}")
         except RuntimeError as err:  # partial set (e.g. --category into an empty folder): no README
             print(f"README not written: {err}")

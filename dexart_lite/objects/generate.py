@@ -33,12 +33,12 @@ import numpy as np
 
 from dexart_lite.objects import bucket, faucet, feasibility, geometry, laptop, placement, toilet
 from dexart_lite.objects.model import CategorySpec, ObjectModel, urdf_text
+from dexart_lite.registration import SPECS as TASK_SPECS
 
 GENERATOR_VERSION = 2  # bump whenever a generator's output changes for the same parameters
 SPECS: dict[str, CategorySpec] = {"faucet": faucet.SPEC, "bucket": bucket.SPEC, "laptop": laptop.SPEC,
                                   "toilet": toilet.SPEC}
-SPLIT_SIZES = {"faucet": {"seen": 11, "unseen": 7}, "bucket": {"seen": 11, "unseen": 8},
-               "laptop": {"seen": 11, "unseen": 6}, "toilet": {"seen": 17, "unseen": 11}}
+SPLIT_SIZES = {c: {"seen": spec.seen, "unseen": spec.unseen} for c, spec in TASK_SPECS.items()}  # DexArt's
 DUPLICATE_EPS = 0.08  # normalised parameter distance below which a draw is a near-duplicate
 MAX_ATTEMPTS = 200
 NAME_PATTERN = re.compile(r"^(faucet|bucket|laptop|toilet)_[0-9a-f]{10}$")

@@ -4,7 +4,7 @@
     dexart-lite data objects --split all --samples-per-object 250 --out data/objects --seed 0
     dexart-lite data demos --task laptop --split seen --episodes-per-object 4 --noise 0.2 --out data/demos
 
-(``demos``, scripted-expert demonstrations for distillation, lives in ``dexart_lite.imitation.demos``.)
+(``demos``, scripted-expert demonstrations for distillation, lives in ``dexart_lite.demos``.)
 
 **DAM** (DexArt's manipulation dataset, ``examples/pretrain/generate_dataset.py``): the task env
 with point and camera noise (as the training env), random actions ``uniform(-2, 2)^22`` (the env
@@ -454,7 +454,7 @@ def load_part(root: str | Path, part: str) -> PointCloudSet:
 # ----------------------------------------------------------------------------- command line
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from dexart_lite.cli import add_config_arguments
-    from dexart_lite.imitation import demos  # expert demonstrations for distillation (dexart_lite.imitation)
+    from dexart_lite import demos  # expert demonstrations for distillation (dexart_lite.imitation)
 
     sub = parser.add_subparsers(dest="kind", metavar="KIND", required=True)
     add_config_arguments(sub.add_parser("dam", help="the task env with random actions and joint states"), DamConfig)
@@ -467,7 +467,7 @@ def run(args: argparse.Namespace) -> int:
     from dexart_lite.cli import config_from_args
 
     if args.kind == "demos":
-        from dexart_lite.imitation import demos
+        from dexart_lite import demos
 
         return demos.run(args)
     config_cls, generate = {"dam": (DamConfig, generate_dam), "objects": (ObjectsConfig, generate_objects)}[args.kind]

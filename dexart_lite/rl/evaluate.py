@@ -26,7 +26,7 @@ from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, observation_kwargs, policy_function
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rollout import per_object_summary, run_episodes
-from dexart_lite.utils import check_choice, resolve_device
+from dexart_lite.utils import check_choice, resolve_device, write_json
 
 SPLITS = ("seen", "unseen", "seen_half")
 
@@ -53,6 +53,18 @@ def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", e
     env.close()
     return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
             **per_object_summary(episodes), "wall_time_s": round(time.perf_counter() - start, 1)}
+
+
+def evaluate_splits(policy, cfg, out: Path) -> list[dict]:
+    """``evaluate`` on the seen and the unseen objects with a run's evaluation settings (``cfg``: any config with
+    ``task``, ``eval_episodes``, ``eval_seed`` and ``env_kwargs()``: PPO, SAC, distillation); writes
+    ``out/eval_<split>.json``. None when ``cfg.eval_episodes`` is 0."""
+    evals = []
+    for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
+        result = evaluate(policy, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
+        write_json(Path(out) / f"eval_{split}.json", result)
+        evals.append(result)
+    return evals
 
 
 def markdown_table(results: list[dict]) -> str:

@@ -28,7 +28,6 @@ import argparse
 import copy
 import dataclasses
 import importlib.util
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field, fields
@@ -39,7 +38,7 @@ import torch
 from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.imitation.demos import load_demos
+from dexart_lite.demos import load_demos
 from dexart_lite.models.actor_critic import (HEAD_HIDDEN, POINTS_KEY, STATE_HIDDEN, STATE_KEY, Acting,
                                              action_log_std, encoder_of, make_actor_critic, set_action_log_std,
                                              trunk_of)
@@ -767,14 +766,11 @@ def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:
 def evaluate_and_report(cfg, policy, history: list, start: float) -> dict:
     """Evaluation of ``policy`` (the actor-critic, or an off-policy run's actor) on seen and unseen objects,
     learning curve, optional GIF and ``report.md``; ``cfg`` is the run's PPOConfig or SACConfig."""
-    from dexart_lite.rl.evaluate import evaluate, markdown_table, record_gif
+    from dexart_lite.rl.evaluate import evaluate_splits, markdown_table, record_gif
     from dexart_lite.rl.report import network_label, plot_curve, write_report
 
-    out, evals, gif = Path(cfg.out), [], None
-    for split in ("seen", "unseen") if cfg.eval_episodes > 0 else ():
-        result = evaluate(policy, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())
-        (out / f"eval_{split}.json").write_text(json.dumps(result, indent=2))
-        evals.append(result)
+    out, gif = Path(cfg.out), None
+    evals = evaluate_splits(policy, cfg, out)
     if cfg.gif:
         name = objects_lib.list_objects(cfg.task, "seen")[0].name
         gif = record_gif(policy, cfg.task, out / "episode.gif", "seen", name, cfg.eval_seed,

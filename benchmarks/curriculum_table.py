@@ -1,9 +1,9 @@
 """The tables of RL from the experts, generated from the committed JSON (never typed by hand).
 
-    python benchmarks/curriculum_table.py            # print both tables
+    python benchmarks/curriculum_table.py            # print the tables
     python benchmarks/curriculum_table.py --write    # refresh them in docs/results/rl_from_experts.md and README.md
 
-Three tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
+Four tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
 
 * ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/curriculum/*.json`` run
   set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success
@@ -12,6 +12,8 @@ Three tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in t
   ``benchmarks/results/curriculum/clone_capacity_*.json`` (``benchmarks/clone_capacity.py``).
 * ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, each cell from its JSON
   (``HEADLINE``), with DexArt's Table 2 (no pretraining) beside them.
+* ``zoo`` (README.md): the policies shipped in ``dexart_lite/zoo/`` and the success each reproduces (its manifest,
+  written by ``benchmarks/zoo_build.py`` together with ``benchmarks/results/zoo.json``).
 
 ``tests/test_docs_tables.py`` fails when a table in a file differs from what this script generates.
 """
@@ -109,8 +111,19 @@ def headline_table() -> str:
     return "\n".join(rows)
 
 
+def zoo_table() -> str:
+    """The shipped policies (dexart_lite/zoo/manifest.json, written by benchmarks/zoo_build.py with zoo.json)."""
+    manifest = load(ROOT / "dexart_lite" / "zoo" / "manifest.json")["policies"]
+    rows = ["| `--ckpt` | trained by | frames | seed | seen / unseen success (3 eps per object, env seed 100) |",
+            "|---|---|---|---|---|"]
+    for task, e in manifest.items():
+        rows.append(f"| `zoo:{task}` | {e['trainer']} (`{e['training_command']}`) | {e['frames'] / 1000:.0f}k | {e['seed']} "
+                    f"| [{e['seen_success']:.2f} / {e['unseen_success']:.2f}](benchmarks/results/zoo.json) |")
+    return "\n".join(rows)
+
+
 TABLES = {"curriculum-runs": (DOC, runs_table), "clone-capacity": (DOC, clone_table),
-          "rl-headline": (README, headline_table)}
+          "rl-headline": (README, headline_table), "zoo": (README, zoo_table)}
 
 
 def block(text: str, name: str) -> re.Match | None:

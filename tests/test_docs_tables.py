@@ -49,3 +49,22 @@ def test_nothing_in_the_repository_links_outside_it():
         if any(link in text for link in outside):
             offenders.append(name)
     assert offenders == []
+
+
+def test_every_relative_link_in_the_docs_resolves():
+    """Each ``[text](path)`` in the README, docs/ and the READMEs beside the code names a file or folder that exists
+    (the reports under benchmarks/results/ are run outputs copied as they were written, GIF links included)."""
+    import re
+    import subprocess
+
+    root = SCRIPT.parent.parent
+    tracked = subprocess.run(["git", "ls-files", "*.md"], cwd=root, capture_output=True, text=True, check=True).stdout.split()
+    broken = []
+    for name in (n for n in tracked if not n.startswith("benchmarks/results/")):
+        path = root / name
+        for target in re.findall(r"\]\(([^)\s]+)\)", path.read_text()):
+            if re.match(r"[a-z]+:", target) or target.startswith("#"):
+                continue  # a web address or an anchor on the same page
+            if not (path.parent / target.split("#")[0]).exists():
+                broken.append(f"{name}: {target}")
+    assert broken == []

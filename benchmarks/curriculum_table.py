@@ -113,7 +113,8 @@ def headline_table() -> str:
 
 def zoo_table() -> str:
     """The shipped policies (dexart_lite/zoo/manifest.json, written by benchmarks/zoo_build.py with zoo.json)."""
-    manifest = load(ROOT / "dexart_lite" / "zoo" / "manifest.json")["policies"]
+    path = ROOT / "dexart_lite" / "zoo" / "manifest.json"
+    manifest = load(path)["policies"] if path.exists() else {}
     rows = ["| `--ckpt` | trained by | frames | seed | seen / unseen success (3 eps per object, env seed 100) |",
             "|---|---|---|---|---|"]
     for task, e in manifest.items():

@@ -85,7 +85,12 @@ RECIPES = {
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
-CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean", "wall_s")
+# per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
+# steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
+# the planned update the KL stop let through, the BC term's weight
+CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean",
+              "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
+              "update_steps_frac", "bc_weight", "wall_s")
 
 
 def student_config(task: str, seed: int, args) -> DistillConfig:
@@ -155,7 +160,27 @@ def run_seed(job: tuple) -> dict:
             "dagger_success": (result["demos"] or {}).get("dagger_success"),
             # the cloned policy before any PPO update (a resumed run reads it from its checkpoint)
             "warmstart_success": (result["demos"] or {}).get("warmstart_eval"),
-            "curve": [{k: no_nan(row.get(k)) for k in CURVE_KEYS} for row in result["history"]]}
+            "curve": curve(result["history"])}
+
+
+def curve(history: list[dict]) -> list[dict]:
+    return [{k: no_nan(row.get(k)) for k in CURVE_KEYS} for row in history]
+
+
+def refresh_curves(path: Path, runs: Path) -> dict:
+    """Rewrite the ``curve`` of every seed of a written JSON from its run's checkpoint (``CURVE_KEYS`` as they are
+    now); nothing is trained or evaluated again."""
+    from dexart_lite.rl.checkpoint import load_checkpoint
+
+    summary = json.loads(path.read_text())
+    for row in summary["per_seed"]:
+        run = runs / f"{summary['task']}_{summary['obs']}_{summary['recipe']}_s{row['seed']}"
+        history = load_checkpoint(run / ppo.CHECKPOINT)["history"]
+        if history[-1]["frames"] != row["frames"]:
+            raise ValueError(f"{run} holds {history[-1]['frames']} frames, the JSON {row['frames']}")
+        row["curve"] = curve(history)
+    write_json(path, summary)
+    return summary
 
 
 def main(argv=None) -> dict:
@@ -171,7 +196,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", default="runs/curriculum")
     parser.add_argument("--results", type=Path, default=RESULTS)
     parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
+    parser.add_argument("--refresh-curves", action="store_true",
+                        help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
     args = parser.parse_args(argv)
+    if args.refresh_curves:
+        return refresh_curves(args.results / f"{args.task}_{args.obs}_{args.recipe}.json", Path(args.runs))
     if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
         raise ValueError("fast mode writes smoke results: pass --results elsewhere")
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"

@@ -281,6 +281,13 @@ def test_the_curriculum_benchmark_writes_the_fields_it_documents(tmp_path, load_
     row, = written["per_seed"]
     assert row["frames"] == 400 and row["demo_frames"] > 0 and row["curve"][0]["frames"] == 200
     assert {"seed", "seen_success", "unseen_success", "wall_time_s", "warmstart_success"} <= row.keys()
+    assert {"stage3_frac", "update_steps_frac", "bc_weight"} <= row["curve"][0].keys()
+    # --refresh-curves rebuilds the curves from the checkpoints alone (here: the same ones), trains nothing
+    expected, written["per_seed"][0]["curve"] = row["curve"], []
+    (tmp_path / "results" / "laptop_state_reverse_bc.json").write_text(json.dumps(written))
+    refreshed = bench.main(["--task", "laptop", "--recipe", "reverse_bc", "--runs", str(tmp_path / "runs"),
+                            "--results", str(tmp_path / "results"), "--refresh-curves"])
+    assert refreshed["per_seed"][0]["curve"] == expected
 
 
 def test_the_clone_capacity_benchmark_writes_the_fields_it_documents(tmp_path, load_benchmark):

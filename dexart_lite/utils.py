@@ -149,3 +149,14 @@ def to_cpu(state):
     if isinstance(state, (list, tuple)):
         return type(state)(to_cpu(v) for v in state)
     return state
+
+
+def optimizer_to(optimizer, device) -> None:
+    """Move an optimizer's state (Adam's moments) to ``device``, after its parameters moved there (a resumed run
+    loads the state on the CPU first). Adam's ``step`` counters stay on the CPU, where torch keeps them."""
+    import torch
+
+    for state in optimizer.state.values():
+        for key, value in state.items():
+            if torch.is_tensor(value) and key != "step":
+                state[key] = value.to(device)

@@ -112,3 +112,32 @@ def test_bench_scaling_writes_the_fields_it_documents(tmp_path):
     assert set(result["plain_env"]) == {"1", "2"} and result["plain_env"]["2"]["total"] > 0
     assert result["ray"] in ("not asked for", "not installed (pip install '.[distributed]')") and result["fast_mode"]
     assert (tmp_path / "scaling.png").stat().st_size > 0
+
+
+def test_an_optimizer_state_follows_its_parameters_but_adam_s_step_stays():
+    from dexart_lite.utils import optimizer_to
+
+    net = torch.nn.Linear(3, 2)
+    optimizer = torch.optim.Adam(net.parameters())
+    net(torch.ones(1, 3)).sum().backward()
+    optimizer.step()
+    moved = []
+    for state in optimizer.state.values():  # a stand-in device: record what is asked to move, by key
+        for key in list(state):
+            state[key] = _Recorder(state[key], key, moved) if key != "step" else state[key]
+    optimizer_to(optimizer, torch.device("cpu"))
+    assert sorted(moved) == ["exp_avg", "exp_avg", "exp_avg_sq", "exp_avg_sq"]
+
+
+class _Recorder(torch.Tensor):
+    """A tensor that notes each ``.to`` call (optimizer_to moves Adam's moments, never its step counter)."""
+
+    @staticmethod
+    def __new__(cls, tensor, key, log):
+        out = tensor.as_subclass(cls)
+        out.key, out.log = key, log
+        return out
+
+    def to(self, *args, **kwargs):
+        self.log.append(self.key)
+        return super().to(*args, **kwargs)

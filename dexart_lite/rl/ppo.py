@@ -50,7 +50,7 @@ from dexart_lite.rl.checkpoint import (architecture, checkpoint_path, load_check
                                       save_checkpoint)
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
-from dexart_lite.utils import DEVICES, check_choice, resolve_device, to_cpu
+from dexart_lite.utils import DEVICES, check_choice, optimizer_to, resolve_device, to_cpu
 
 BACKENDS = ("process", "distributed", "ray")
 CHECKPOINT = "checkpoint.pt"
@@ -446,6 +446,7 @@ class Learner:
         for module in (self.actor_critic, self.loss_module, self.value_operator, self.critic, self.anchor):
             if module is not None:
                 module.to(self.device)
+        optimizer_to(self.optimizer, self.device)  # a resumed run's Adam moments were loaded on the CPU
         return acting
 
     def sync_acting(self, acting: torch.nn.Module) -> None:

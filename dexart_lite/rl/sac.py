@@ -45,7 +45,7 @@ from dexart_lite.rl.curriculum import guide_demos, send_level
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.ppo import PPOConfig, batch_stats, curriculum_config, evaluate_and_report, make_curriculum
 from dexart_lite.models.pointnet import ENCODER_SIZES
-from dexart_lite.utils import DEVICES, check_choice, resolve_device, to_cpu
+from dexart_lite.utils import DEVICES, check_choice, optimizer_to, resolve_device, to_cpu
 
 CHECKPOINT = "checkpoint.pt"
 BUFFER_DIR = "buffer"
@@ -335,6 +335,7 @@ def train(cfg: SACConfig) -> dict:
     if on_device:
         actor.to(device)
         loss.to(device)
+        optimizer_to(optimizer, device)  # a resumed run's Adam moments were loaded on the CPU
 
     # ---- collection: one env in this process, the actor's stochastic actions
     collector = None

@@ -167,12 +167,14 @@ def curve(history: list[dict]) -> list[dict]:
     return [{k: no_nan(row.get(k)) for k in CURVE_KEYS} for row in history]
 
 
-def refresh_curves(path: Path, runs: Path) -> dict:
+def refresh_curves(path: Path, runs: Path, note: str | None = None) -> dict:
     """Rewrite the ``curve`` of every seed of a written JSON from its run's checkpoint (``CURVE_KEYS`` as they are
-    now); nothing is trained or evaluated again."""
+    now), and its ``note`` if one is given; nothing is trained or evaluated again."""
     from dexart_lite.rl.checkpoint import load_checkpoint
 
     summary = json.loads(path.read_text())
+    if note:
+        summary["note"] = note
     for row in summary["per_seed"]:
         run = runs / f"{summary['task']}_{summary['obs']}_{summary['recipe']}_s{row['seed']}"
         history = load_checkpoint(run / ppo.CHECKPOINT)["history"]
@@ -200,7 +202,7 @@ def main(argv=None) -> dict:
                         help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
     args = parser.parse_args(argv)
     if args.refresh_curves:
-        return refresh_curves(args.results / f"{args.task}_{args.obs}_{args.recipe}.json", Path(args.runs))
+        return refresh_curves(args.results / f"{args.task}_{args.obs}_{args.recipe}.json", Path(args.runs), args.note)
     if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
         raise ValueError("fast mode writes smoke results: pass --results elsewhere")
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"

@@ -55,7 +55,8 @@ def collection_fps(task: str, backend: str, workers: int, frames: int, per_worke
     probe = env_fns[0]()
     actor_critic = make_actor_critic(probe.observation_spec["observation"].shape[-1])
     probe.close()
-    collector = ppo.make_collector(cfg, env_fns, actor_critic, total_frames=-1)
+    # a finite total: torchrl's RayCollector yields nothing for -1 ("endless" to the other collectors)
+    collector = ppo.make_collector(cfg, env_fns, actor_critic, total_frames=frames + 2 * cfg.frames_per_batch)
     try:
         batches = iter(collector)
         next(batches)  # warm-up: worker start-up and first resets

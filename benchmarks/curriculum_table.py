@@ -38,7 +38,8 @@ PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (
 HEADLINE = {
     "faucet": {"student": "distill_faucet_episodes2x.json", "rl": None, "rl_state": "faucet_state_dagger_wide.json"},
     "bucket": {"student": "distill_bucket.json", "rl": None, "rl_state": None},
-    "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": None, "rl_state": "laptop_state_dagger_wide.json"},
+    "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": "laptop_cloud_student_guarded.json",
+               "rl_state": "laptop_state_dagger_wide.json"},
     "toilet": {"student": "distill_toilet_episodes2x.json", "rl": None, "rl_state": None},
 }
 
@@ -115,7 +116,7 @@ def zoo_table() -> str:
     """The shipped policies (dexart_lite/zoo/manifest.json, written by benchmarks/zoo_build.py with zoo.json)."""
     path = ROOT / "dexart_lite" / "zoo" / "manifest.json"
     manifest = load(path)["policies"] if path.exists() else {}
-    rows = ["| `--ckpt` | trained by | frames | seed | seen / unseen success (3 eps per object, env seed 100) |",
+    rows = ["| `--ckpt` | trained by | frames (its training data) | seed | seen / unseen success (3 eps per object, env seed 100) |",
             "|---|---|---|---|---|"]
     for task, e in manifest.items():
         rows.append(f"| `zoo:{task}` | {e['trainer']} (`{e['training_command']}`) | {e['frames'] / 1000:.0f}k | {e['seed']} "

@@ -7,7 +7,7 @@ For each ``TASK=CHECKPOINT``: the weights, config, sizes and history of the chec
 written to ``dexart_lite/zoo/<task>.pt`` (at most 2 MB), loaded back strictly and evaluated as ``dexart-lite eval
 --ckpt zoo:<task>`` does (deterministic actions from the true reset, ``--episodes`` per seen and unseen object,
 env seed 100). The measurements go to ``benchmarks/results/zoo.json`` (per task: file, bytes, trainer, frames,
-seed, the training command (from ``--source``, the results JSON the run belongs to), the machine, seen_success,
+seed, the training command (from ``--source``, the results JSON the run belongs to), the machine, ``--note``, seen_success,
 unseen_success, eval_episodes_per_object, eval_seed, mean_max_stage; the command and machine of this script),
 and the same entries to ``dexart_lite/zoo/manifest.json``, which the package reads. Tasks not named keep their
 entries.
@@ -45,7 +45,7 @@ def ship(task: str, source: Path, folder: Path) -> Path:
     payload = load_checkpoint(source)
     if payload["config"]["task"] != task:
         raise ValueError(f"{source} is a {payload['config']['task']} policy, not {task}")
-    path = save_checkpoint(folder / f"{task}.pt", {k: payload[k] for k in REQUIRED})
+    path = save_checkpoint(folder / f"{task}.pt", {k: payload[k] for k in (*REQUIRED, "trainer") if k in payload})
     if path.stat().st_size > zoo.MAX_BYTES:
         path.unlink()
         raise ValueError(f"{source} is {path.stat().st_size / 1e6:.1f} MB without its optimizer; the zoo takes "
@@ -75,6 +75,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--seed", type=int, default=100, help="evaluation env seed (as dexart-lite eval)")
     parser.add_argument("--zoo", type=Path, default=zoo.FOLDER, help="where the checkpoints and manifest go")
     parser.add_argument("--json", type=Path, default=RESULTS)
+    parser.add_argument("--note", default=None, help="a line stored with each policy of this call (which run, why)")
     args = parser.parse_args(argv)
     if fast_mode() and (args.json == RESULTS or args.zoo == zoo.FOLDER):
         raise ValueError("fast mode writes smoke results: pass --json and --zoo elsewhere")
@@ -85,6 +86,8 @@ def main(argv=None) -> dict:
         path = ship(task, Path(source), args.zoo)
         training = json.loads(Path(sources[task]).read_text()) if task in sources else None
         entries[task] = measure(task, path, args.episodes, args.seed, training)
+        if args.note:
+            entries[task]["note"] = args.note
         print(f"zoo:{task}: {entries[task]['bytes'] / 1e6:.2f} MB, seen {entries[task]['seen_success']:.2f}, "
               f"unseen {entries[task]['unseen_success']:.2f}")
     result = {"policies": dict(sorted(entries.items())), "command": command_line("benchmarks/zoo_build.py", argv),

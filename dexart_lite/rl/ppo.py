@@ -830,7 +830,7 @@ def train(cfg: PPOConfig) -> dict:
     tick = time.perf_counter()
     try:  # shut the workers down on errors too
         torch.set_num_threads(collect_threads)
-        for data in collector or []:
+        for data in (collector if collector is not None else []):  # not `or []`: RayCollector breaks bool()
             collected = time.perf_counter()
             torch.set_num_threads(learner_threads)
             # contiguous: the distributed collector yields a lazy stack of the workers' batches

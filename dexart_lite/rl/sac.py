@@ -349,7 +349,7 @@ def train(cfg: SACConfig) -> dict:
                                                                    if cfg.max_minutes else ""))
     tick = time.perf_counter()
     try:
-        for data in collector or []:
+        for data in (collector if collector is not None else []):  # not `or []`: RayCollector breaks bool()
             collected = time.perf_counter()
             store(online, data, keys, cfg.reward_scale, demo=False)
             starts = curriculum.update(data) if curriculum is not None else {}

@@ -21,7 +21,6 @@ speed-ups are claimed from this ratio, never from figures taken on different day
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import statistics
 import time
 from pathlib import Path
@@ -30,7 +29,7 @@ import psutil
 
 import dexart_lite
 from dexart_lite.envs import make
-from dexart_lite.rollout import random_actions, step_rate
+from dexart_lite.rollout import parallel_step_rates, random_actions, step_rate
 from dexart_lite.utils import command_line, git_worktree, machine_info, run_in_checkout, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,31 +69,9 @@ def physics_rate(task: str, steps: int, seed: int = 0) -> float:
     return rate
 
 
-def _worker(task: str, steps: int, seed: int, barrier, out) -> None:
-    env = make(task)
-    env.reset(seed=seed)
-    actions = random_actions(steps, seed)
-    barrier.wait()
-    start = time.perf_counter()
-    for a in actions:
-        _, _, terminated, truncated, _ = env.step(a)
-        if terminated or truncated:
-            env.reset()
-    out.put(steps / (time.perf_counter() - start))
-    env.close()
-
-
 def two_process_rate(task: str, steps: int) -> float:
     """Total env steps per second of two worker processes stepping at the same time."""
-    ctx = mp.get_context("spawn")
-    barrier, out = ctx.Barrier(2), ctx.Queue()
-    procs = [ctx.Process(target=_worker, args=(task, steps, seed, barrier, out)) for seed in (0, 1)]
-    for p in procs:
-        p.start()
-    rates = [out.get() for _ in procs]
-    for p in procs:
-        p.join()
-    return float(sum(rates))
+    return float(sum(parallel_step_rates(task, steps, 2)))
 
 
 def reset_rss_growth_mb(resets: int) -> float:

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib.util
-import multiprocessing as mp
 import os
 import time
 from functools import partial
@@ -38,10 +37,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import dexart_lite  # noqa: E402
-from dexart_lite.envs import make  # noqa: E402
 from dexart_lite.models.actor_critic import make_actor_critic  # noqa: E402
 from dexart_lite.rl import ppo  # noqa: E402
 from dexart_lite.rl.env import make_env  # noqa: E402
+from dexart_lite.rollout import parallel_step_rates  # noqa: E402
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results" / "bench_scaling.json"
@@ -68,31 +67,10 @@ def collection_fps(task: str, backend: str, workers: int, frames: int, per_worke
         collector.shutdown()
 
 
-def _stepper(task: str, steps: int, seed: int, env_kwargs: dict, barrier, out) -> None:
-    env = make(task, **env_kwargs)
-    env.reset(seed=seed)
-    actions = np.random.default_rng(seed).uniform(-1, 1, (steps, 22)).astype(np.float32)
-    barrier.wait()
-    start = time.perf_counter()
-    for action in actions:
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            env.reset()
-    out.put(steps / (time.perf_counter() - start))
-    env.close()
-
-
 def plain_env_rate(task: str, processes: int, steps: int, env_kwargs: dict) -> dict:
-    """``env.step`` calls/s of ``processes`` spawned processes stepping at once: total and per process."""
-    ctx = mp.get_context("spawn")
-    barrier, out = ctx.Barrier(processes), ctx.Queue()
-    procs = [ctx.Process(target=_stepper, args=(task, steps, seed, env_kwargs, barrier, out))
-             for seed in range(processes)]
-    for p in procs:
-        p.start()
-    rates = [out.get() for _ in procs]
-    for p in procs:
-        p.join()
+    """``env.step`` calls/s (random actions, ``rollout.random_actions``) of ``processes`` spawned processes
+    stepping at once: total and per process."""
+    rates = parallel_step_rates(task, steps, processes, **env_kwargs)
     return {"total": float(sum(rates)), "per_process": float(np.mean(rates))}
 
 

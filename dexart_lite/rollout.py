@@ -113,14 +113,17 @@ def random_actions(n: int, seed: int = 0) -> np.ndarray:
     return rng.uniform(-1, 1, size=(n, 22)) * np.r_[[0.3] * 6, [1.0] * 16]
 
 
-def step_rate(task: str, steps: int, seed: int = 0, **env_kwargs) -> float:
+def step_rate(task: str, steps: int, seed: int = 0, barrier=None, **env_kwargs) -> float:
     """env.step calls per second over ``steps`` random steps (episodes restart as they end), for the
-    benchmarks; ``env_kwargs`` go to the env (e.g. ``solver_iterations``)."""
+    benchmarks; ``env_kwargs`` go to the env (e.g. ``solver_iterations``). With ``barrier`` (a
+    multiprocessing barrier) the timing starts when every process sharing it is ready."""
     from dexart_lite.envs import make
 
     env = make(task, **env_kwargs)
     env.reset(seed=seed)
     actions = random_actions(steps, seed)
+    if barrier is not None:
+        barrier.wait()
     start = time.perf_counter()
     for a in actions:
         _, _, terminated, truncated, _ = env.step(a)
@@ -129,3 +132,24 @@ def step_rate(task: str, steps: int, seed: int = 0, **env_kwargs) -> float:
     rate = steps / (time.perf_counter() - start)
     env.close()
     return rate
+
+
+def _queued_step_rate(out, task: str, steps: int, seed: int, barrier, env_kwargs: dict) -> None:
+    out.put(step_rate(task, steps, seed, barrier, **env_kwargs))
+
+
+def parallel_step_rates(task: str, steps: int, processes: int, **env_kwargs) -> list[float]:
+    """``step_rate`` in ``processes`` spawned processes (seeds 0, 1, ...) that start timing together: each
+    one's env.step calls per second."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    barrier, out = ctx.Barrier(processes), ctx.Queue()
+    procs = [ctx.Process(target=_queued_step_rate, args=(out, task, steps, seed, barrier, env_kwargs))
+             for seed in range(processes)]
+    for p in procs:
+        p.start()
+    rates = [out.get() for _ in procs]
+    for p in procs:
+        p.join()
+    return rates

@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import subprocess
 import sys
 from functools import partial
 from pathlib import Path
@@ -100,14 +98,12 @@ def test_device_check_writes_the_fields_it_documents(tmp_path, load_benchmark):
     assert result["ratios_vs_first"]["cpu"]["ppo_update_fps"] == 1.0 and "gpu" in result["machine"]
 
 
-def test_bench_scaling_writes_the_fields_it_documents(tmp_path):
-    """Run as a script (its spawned env processes import it by name, which a module loaded by path cannot)."""
+def test_bench_scaling_writes_the_fields_it_documents(tmp_path, load_benchmark):
     path = tmp_path / "scaling.json"
-    script = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_scaling.py"
-    subprocess.run([sys.executable, str(script), "--backends", "process", "--workers", "1", "2", "--frames", "40",
-                    "--per-worker", "20", "--steps", "20", "--json", str(path)], check=True, capture_output=True, timeout=600,
-                   env={**os.environ, "DEXART_LITE_FAST": "1"})  # 20-step episodes of 64-point clouds
-    result = json.loads(path.read_text())
+    bench = load_benchmark("bench_scaling")
+    result = bench.main(["--backends", "process", "--workers", "1", "2", "--frames", "40", "--per-worker", "20",
+                         "--steps", "20", "--json", str(path)])  # fast mode (conftest): 20-step episodes, 64 points
+    assert json.loads(path.read_text()) == json.loads(json.dumps(result))
     assert set(result["collection"]["process"]) == {"1", "2"} and all(v > 0 for v in result["collection"]["process"].values())
     assert set(result["plain_env"]) == {"1", "2"} and result["plain_env"]["2"]["total"] > 0
     assert result["ray"] in ("not asked for", "not installed (pip install '.[distributed]')") and result["fast_mode"]

@@ -79,6 +79,11 @@ RECIPES = {
     # cloned again: the guide's 4 noisy episodes per object and 3 rounds of 4 episodes per object that the
     # student drives (labelled by the guide) are the BC term's data
     "student_guarded": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "bc_warmstart": 0, "student": True},
+    # anchored: the `finetune` preset of rl/ppo.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out
+    # of the trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop
+    # students on both splits (benchmarks/results/finetune_laptop_anchor.json), from the headline student, no BC term
+    "student_anchored": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
+                         "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
@@ -90,7 +95,7 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # the planned update the KL stop let through, the BC term's weight
 CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean",
               "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
-              "update_steps_frac", "bc_weight", "wall_s")
+              "update_steps_frac", "bc_weight", "kl_init", "wall_s")
 
 
 def student_config(task: str, seed: int, args) -> DistillConfig:

@@ -38,14 +38,17 @@ from dexart_lite.models.pointnet import PointNetEncoder
 from dexart_lite.pointcloud import LABELS
 from dexart_lite.rollout import noisy, run_episodes
 from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.registration import privileged_slices
 from dexart_lite.utils import command_line, fast_mode, machine_info, write_json
 
 VARIANTS = ("dexart", "scaled", "labels", "scaled-medium", "labels-medium")
 SCALE = 0.2  # m: ``scaled`` divides the centred coordinates by this
-# Groups of the 20 privileged entries (Solver.privileged) and the unit each error is reported in.
-GROUPS = {"part_position_cm": (slice(0, 3), 100.0), "part_rotation": (slice(3, 9), 1.0),
-          "joint_angle_rad": (slice(9, 10), 1.0), "joint_target_rad": (slice(10, 11), 1.0),
-          "extent_cm": (slice(11, 17), 100.0), "grasp_point_cm": (slice(17, 20), 100.0)}
+# Groups of the 20 privileged entries (Solver.privileged, registration.EXPERT_PRIVILEGED) and the unit each
+# error is reported in.
+_AT = privileged_slices()
+GROUPS = {"part_position_cm": (_AT["part_pos"], 100.0), "part_rotation": (_AT["part_rot"], 1.0),
+          "joint_angle_rad": (_AT["joint"], 1.0), "joint_target_rad": (_AT["joint_target"], 1.0),
+          "extent_cm": (_AT["part_bounds"], 100.0), "grasp_point_cm": (_AT["grasp_pos"], 100.0)}
 
 
 def collect(task: str, split: str, episodes_per_object: int, noise: float, seed: int,

@@ -49,7 +49,7 @@ import torch
 from tensordict import TensorDict
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.registration import TASKS
+from dexart_lite.registration import PRIVILEGED_DIM, TASKS
 from dexart_lite.rollout import noisy, per_object_summary, run_episodes
 from dexart_lite.utils import check_choice
 
@@ -61,7 +61,6 @@ SPLITS = ("seen", "seen_half", "unseen")
 MANIFEST_KEYS = ("task", "split", "objects", "num_points", "cloud_points", "state_dim", "samples", "episodes",
                  "expert_success_rate", "expert_mean_max_stage", "noise", "seed")
 ACTION_DIM = 22
-PRIVILEGED_DIM = 20  # experts.PRIVILEGED_DIM (not imported: the experts pull in trimesh and yourdfpy)
 # key -> (shape after the sample dimension, with N / D for the cloud and state sizes; dtype)
 SAMPLE_SPECS = {
     "point_cloud": (("N", 3), torch.float32),

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import gymnasium as gym
+import numpy as np
 
 from dexart_lite.utils import check_choice
 
@@ -52,6 +53,55 @@ HORIZON = 250  # control steps per episode (10 s at 25 Hz): the registered max_e
 OBSERVATIONS = ("cloud", "state")  # the env's ``observation``: DexArt's point cloud + state; the state-only diagnostic
 HAND_MODES = ("joints", "synergy")  # the env's ``hand``: DexArt's 16 joint targets; 3 synergies (robot.py)
 ENV_IDS = [f"DexArtLite/{task.capitalize()}-v0" for task in TASKS]
+
+# The state vector of every task, in order (name -> entries): the 22 joint positions (arm, then hand; rad), the
+# palm's linear (m/s) and angular (rad/s) velocity, the palm's position (m, world), the task's own entries
+# (``TaskSpec.state_dim`` - 32 of them: the bucket's palm-up) and the time, t / horizon.
+STATE_LAYOUT = {"qpos": 22, "palm_velocity": 6, "palm_pos": 3, "task": None, "time": 1}
+
+# The privileged state, defined once: every entry a privileged vector may hold (name -> entries), in this order.
+# part_pos: the functional part's link origin from the robot base (m); part_rot: the first two columns of its
+# rotation matrix; joint, joint_init, joint_target: its joint angle now, at reset and for success (rad);
+# part_bounds: its mesh's min and max corner in its own frame (m); grasp_pos: the grasp point from the robot base (m).
+PRIVILEGED_ENTRIES = {"part_pos": 3, "part_rot": 6, "joint": 1, "joint_init": 1, "joint_target": 1,
+                      "part_bounds": 6, "grasp_pos": 3}
+STATE_ONLY_PRIVILEGED = ("part_pos", "part_rot", "joint", "joint_init", "joint_target", "grasp_pos")  # the
+# state-only diagnostic's observation appends these (DexArtEnv.privileged_state)
+EXPERT_PRIVILEGED = ("part_pos", "part_rot", "joint", "joint_target", "part_bounds", "grasp_pos")  # what a scripted
+# expert knows and a distilled student must find in its cloud (Solver.privileged; distillation's auxiliary target)
+PRIVILEGED_STATE = sum(PRIVILEGED_ENTRIES[n] for n in STATE_ONLY_PRIVILEGED)  # 15
+PRIVILEGED_DIM = sum(PRIVILEGED_ENTRIES[n] for n in EXPERT_PRIVILEGED)  # 20
+
+
+def state_slices(task: str) -> dict[str, slice]:
+    """Where each entry of ``STATE_LAYOUT`` sits in ``task``'s state vector."""
+    check_choice("task", task, TASKS)
+    sizes = {**STATE_LAYOUT, "task": SPECS[task].state_dim - sum(v for v in STATE_LAYOUT.values() if v)}
+    return _slices(sizes, sizes)
+
+
+def privileged_slices(names: tuple[str, ...] = EXPERT_PRIVILEGED) -> dict[str, slice]:
+    """Where each entry sits in a privileged vector made of ``names`` (by default, an expert's)."""
+    return _slices(names, PRIVILEGED_ENTRIES)
+
+
+def privileged_vector(names: tuple[str, ...], **values) -> np.ndarray:
+    """The privileged vector of ``names``, in that order, from one value per name (float64; shapes checked)."""
+    parts = []
+    for name in names:
+        part = np.ravel(np.asarray(values[name], float))
+        if part.size != PRIVILEGED_ENTRIES[name]:
+            raise ValueError(f"privileged entry {name!r} has {PRIVILEGED_ENTRIES[name]} values, got {part.size}")
+        parts.append(part)
+    return np.concatenate(parts)
+
+
+def _slices(names, sizes: dict) -> dict[str, slice]:
+    out, start = {}, 0
+    for name in names:
+        out[name] = slice(start, start + sizes[name])
+        start += sizes[name]
+    return out
 
 
 def env_id(task: str) -> str:

@@ -421,10 +421,43 @@ def test_each_task_spec_is_what_the_env_the_catalog_and_the_experts_use():
         env.close()
 
 
+def test_the_state_layouts_are_what_the_env_and_the_experts_emit():
+    """registration.STATE_LAYOUT and the privileged layouts, defined once: the state vector's named slices hold
+    what the robot reports, the state-only observation and the expert's privileged vector hold the part's
+    joint angle and grasp point where the layout says, and a wrong-sized entry is refused by name."""
+    from dexart_lite.experts import ScriptedPolicy
+    from dexart_lite.registration import (EXPERT_PRIVILEGED, PRIVILEGED_DIM, PRIVILEGED_STATE, SPECS, STATE_ONLY_PRIVILEGED,
+                                          privileged_slices, privileged_vector, state_slices)
+
+    assert (PRIVILEGED_STATE, PRIVILEGED_DIM) == (15, 20)
+    for task in ("laptop", "bucket"):
+        env = make(task, observation="state")
+        policy = ScriptedPolicy(env)
+        obs, _ = env.reset(seed=0)
+        policy(obs)
+        s, at = env.unwrapped.state, state_slices(task)
+        vector = obs["state"]
+        assert at["time"].stop == SPECS[task].state_dim == vector.shape[0] - PRIVILEGED_STATE
+        np.testing.assert_allclose(vector[at["qpos"]], s.robot.qpos, atol=1e-6)
+        np.testing.assert_allclose(vector[at["palm_pos"]], s.robot.palm_pos, atol=1e-6)
+        assert vector[at["time"]] == 0.0 and (at["task"].stop - at["task"].start) == SPECS[task].state_dim - 32
+        base = np.asarray(SPECS[task].robot_base)
+        extra = vector[SPECS[task].state_dim:]
+        for names, v in ((STATE_ONLY_PRIVILEGED, extra), (EXPERT_PRIVILEGED, policy.privileged)):
+            p = privileged_slices(names)
+            assert v[p["joint"]] == pytest.approx(s.q, abs=1e-5) and v[p["joint_target"]] == pytest.approx(
+                s.obj.joint_target, abs=1e-5)
+            np.testing.assert_allclose(v[p["grasp_pos"]], s.handle_pos - base, atol=1e-5)
+        env.close()
+    with pytest.raises(ValueError, match="'joint' has 1 values, got 2"):
+        privileged_vector(("joint",), joint=[0.0, 1.0])
+
+
 def test_no_module_writes_a_task_fact_down_again():
     """The facts of registration.SPECS are assigned nowhere else: a literal robot base, randomisation, split
-    size, success threshold, expert table, student mask or state size elsewhere fails here."""
-    names = r"ROBOT_BASE|RAND_POS|RAND_YAW(_DEG)?|HALF_SIZES|SPLIT_SIZES|SUCCESS_\w+|FAUCET_SUCCESS|BUCKET_LIFT|DROP_STATE|SOLVERS"
+    size, success threshold, expert table, student mask, state size or state layout elsewhere fails here."""
+    names = (r"ROBOT_BASE|RAND_POS|RAND_YAW(_DEG)?|HALF_SIZES|SPLIT_SIZES|SUCCESS_\w+|FAUCET_SUCCESS|BUCKET_LIFT|DROP_STATE"
+             r"|SOLVERS|PRIVILEGED_\w+|where")
     literal = r"[-\d(\[\"]|\{\s*\"|np\.deg2rad\(\d"  # a number, tuple, list, string, dict literal or degrees
     repeated = re.compile(rf"^\s*({names})\s*=\s*({literal})|\b3[23] if .*bucket", re.M)
     root = Path(__file__).resolve().parent.parent

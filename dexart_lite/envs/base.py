@@ -31,7 +31,8 @@ from dexart_lite.objects import ObjectInfo
 from dexart_lite.robot import (ACTION_DIM, ARM_LINKS, FINGER_GROUPS, MAX_LINEAR_SPEED, SYNERGIES, Robot, RobotState,
                                synergy_targets)
 from dexart_lite.sensor import PointCloudSensor, SensorConfig
-from dexart_lite.registration import HAND_MODES, HORIZON, OBSERVATIONS, TaskSpec  # HORIZON: control steps per episode (the registered max_episode_steps)
+from dexart_lite.registration import (HAND_MODES, HORIZON, OBSERVATIONS, PRIVILEGED_STATE, STATE_ONLY_PRIVILEGED,
+                                      TaskSpec, privileged_vector)  # HORIZON: control steps per episode (the registered max_episode_steps)
 from dexart_lite.sim import BASE_LINK, BulletSim
 from dexart_lite.utils import check_choice
 
@@ -42,7 +43,6 @@ MAX_OBJECT_SPEED = 10.0  # m/s
 TABLE_HALF_EXTENTS = (0.65, 0.65, 0.025)  # m, top surface at z = 0
 TABLE_RGBA, PEDESTAL_RGBA = (0.8, 0.75, 0.65, 1.0), (0.5, 0.5, 0.5, 1.0)
 VIEWER_SIZE = (320, 240)  # px, env.render()
-PRIVILEGED_STATE = 15  # entries the state-only observation appends (DexArtEnv.privileged_state)
 
 CONTROL_DT = 0.04  # s: one control step (DexArt's 25 Hz) = dt * frame_skip at the defaults (0.004 s x 10)
 
@@ -435,14 +435,14 @@ class DexArtEnv(gym.Env):
         return obs
 
     def privileged_state(self, s: State) -> np.ndarray:
-        """What the state-only diagnostic adds to the state vector (``PRIVILEGED_STATE`` entries): the
-        functional part's position from the robot base (3, m) and the first two columns of its rotation
-        (6), its joint angle, initial angle and target (3, rad), and the grasp point from the robot base (3, m)."""
+        """What the state-only diagnostic adds to the state vector: registration.STATE_ONLY_PRIVILEGED
+        (``PRIVILEGED_STATE`` entries; the part's frame is its link's)."""
         pos, quat = self.sim.link_frames(self.objects.body, [PART_LINK])
         rot = pc.quat_to_matrix(quat[0])
         base = np.asarray(self.ROBOT_BASE, float)
-        return np.concatenate([pos[0] - base, rot[:, 0], rot[:, 1], [s.q, s.obj.joint_init, s.obj.joint_target],
-                               s.handle_pos - base])
+        return privileged_vector(STATE_ONLY_PRIVILEGED, part_pos=pos[0] - base, part_rot=rot[:, :2].T, joint=s.q,
+                                 joint_init=s.obj.joint_init, joint_target=s.obj.joint_target,
+                                 grasp_pos=s.handle_pos - base)
 
     def _scenery_can_occlude(self, pose: CameraPose) -> bool:
         """Whether the table or the pedestal could hide a point of the crop box from this camera.

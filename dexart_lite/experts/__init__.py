@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dexart_lite.experts.base import PRIVILEGED_DIM, PartFrame, Solver
+from dexart_lite.experts.base import PartFrame, Solver
+from dexart_lite.registration import PRIVILEGED_DIM
 from dexart_lite.experts.bucket import BucketSolver
 from dexart_lite.experts.faucet import FaucetSolver
 from dexart_lite.experts.laptop import FeedbackLidSolver

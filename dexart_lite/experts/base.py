@@ -12,8 +12,8 @@ from dexart_lite.articulated import PART_LINK
 from dexart_lite.experts.controller import OPEN, PalmController
 from dexart_lite.experts.geometry import Pose, rot_axis
 from dexart_lite.pointcloud import quat_to_matrix
+from dexart_lite.registration import EXPERT_PRIVILEGED, privileged_vector
 
-PRIVILEGED_DIM = 20  # length of Solver.privileged
 
 
 # ----------------------------------------------------------------------------- the part's frame
@@ -66,14 +66,14 @@ class Solver:
         return self.step(state)
 
     def privileged(self, state) -> np.ndarray:
-        """What the expert knows and the student must see in its point cloud, ``(PRIVILEGED_DIM,)``:
-        the functional part's frame (position from the robot base, m; the first two columns of its
-        rotation), its joint angle and target (rad), its extent in its own frame (min and max corner,
-        m) and the grasp point from the robot base (m). Distillation uses it as an auxiliary target."""
+        """What the expert knows and the student must see in its point cloud: registration.EXPERT_PRIVILEGED,
+        ``(PRIVILEGED_DIM,)`` float32 (the part's frame is its mesh's, ``PartFrame``). Distillation uses it as
+        an auxiliary target."""
         part = self.frame.pose()
         base = np.asarray(self.env.ROBOT_BASE, float)
-        return np.concatenate([part.p - base, part.R[:, 0], part.R[:, 1], [state.q, state.obj.joint_target],
-                               self.frame.mesh_bounds.ravel(), state.handle_pos - base]).astype(np.float32)
+        return privileged_vector(EXPERT_PRIVILEGED, part_pos=part.p - base, part_rot=part.R[:, :2].T, joint=state.q,
+                                 joint_target=state.obj.joint_target, part_bounds=self.frame.mesh_bounds,
+                                 grasp_pos=state.handle_pos - base).astype(np.float32)
 
     def step(self, state) -> np.ndarray:
         raise NotImplementedError

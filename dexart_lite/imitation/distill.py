@@ -47,7 +47,7 @@ from dexart_lite.imitation.report import plot_rounds, write_report
 from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label,
                                              encoder_of, input_key, make_actor_critic, trunk_of)
 from dexart_lite.models.pointnet import load_encoder, save_encoder
-from dexart_lite.registration import SPECS, TASKS
+from dexart_lite.registration import SPECS, TASKS, state_slices
 from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate_splits, record_gif
@@ -162,9 +162,11 @@ class DistillConfig:
         return values
 
     def dropped_state(self, state_dim: int) -> list[int]:
-        """Indices of ``drop_state`` in the env's state vector (qpos 22, palm velocity 6, palm position 3,
-        [bucket: palm-up 1], t / horizon last)."""
-        where = {"time": [state_dim - 1], "palm_velocity": list(range(22, 28))}
+        """Indices of ``drop_state`` in the env's state vector (registration.STATE_LAYOUT) of ``state_dim`` entries."""
+        slices = state_slices(self.task)
+        if slices["time"].stop != state_dim:
+            raise ValueError(f"a {self.task} state vector has {slices['time'].stop} entries, not {state_dim}")
+        where = {name: list(range(state_dim))[slices[name]] for name in ("time", "palm_velocity")}
         drop = DROP_STATE.get(self.task, "") if self.drop_state == "auto" else self.drop_state
         names = [n.strip() for n in drop.split(",") if n.strip()]
         for name in names:
@@ -246,7 +248,7 @@ def validate(cfg: DistillConfig) -> None:
         raise ValueError(f"max_minutes must be > 0, got {cfg.max_minutes}")
     cfg.head_widths()
     cfg.view_range_degrees()
-    cfg.dropped_state(33)
+    cfg.dropped_state(SPECS[cfg.task].state_dim)
     if not (math.isfinite(cfg.arm_weight) and cfg.arm_weight > 0):
         raise ValueError(f"arm_weight must be a finite weight > 0, got {cfg.arm_weight}")
     if not 0 <= cfg.image_shift <= 16:

@@ -6,7 +6,7 @@ camera's x (image right), y (image down) and z (viewing direction) axes in world
 per-pixel rays computed once per camera: ``p_cam = depth * ray`` with ``ray = ((u - cx) / fx,
 (v - cy) / fy, 1)``.
 
-Cost (see ``benchmarks/bench_sim.py``): TinyRenderer's time grows with the scene's visual triangles,
+Cost (see ``benchmarks/perf/bench_sim.py``): TinyRenderer's time grows with the scene's visual triangles,
 so the arm is drawn with its low-poly collision hulls (``robot_model``), and ``shadow=0`` is always
 passed explicitly (PyBullet's default keeps the last value, and shadows double the cost).
 """

@@ -37,7 +37,7 @@ ACTION_DIM = len(ARM_JOINTS) + len(HAND_JOINTS)  # 22
 # hold the laptop expert's hook (knuckles bent, fingers straight, then curled over the edge). The idea:
 # PPO's noise on 3 numbers closes the hand as a whole, where 16 independent noises give a half-curled
 # hand that rarely closes. Measured: the experts projected on these lines keep most of their success
-# (benchmarks/synergy_expert.py), and PPO from scratch did not learn more with it (docs/results/ppo.md).
+# (benchmarks/experts/synergy_expert.py), and PPO from scratch did not learn more with it (docs/results/ppo.md).
 SYNERGIES = ("knuckles", "curl", "thumb")
 SYNERGY_OPEN = np.array([0.0] * 12 + [0.263, 0.0, 0.0, 0.0])  # (16,) rad, the start pose's hand
 SYNERGY_CLOSED = np.array([0.0, 1.61, 1.709, 1.618] * 3 + [0.767, 1.163, 0.597, 1.719])  # (16,) rad

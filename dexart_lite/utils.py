@@ -39,6 +39,26 @@ def command_line(script: str, argv: list[str] | None = None) -> str:
     return " ".join(["python", script, *(sys.argv[1:] if argv is None else argv)])
 
 
+def provenance(script_file: str, argv: list[str] | None = None) -> dict:
+    """What every benchmark JSON records about its run: ``command`` (``python benchmarks/<theme>/<script>.py
+    <args>``, the path found from the script's ``__file__``), ``machine`` (``machine_info``) and ``fast_mode``
+    (a smoke run, not evidence)."""
+    from pathlib import Path
+
+    path = Path(script_file).resolve()
+    return {"command": command_line(path.relative_to(path.parents[2]).as_posix(), argv), "machine": machine_info(),
+            "fast_mode": fast_mode()}
+
+
+def benchmark_results(script_file: str):
+    """The folder a benchmark script (its ``__file__``, ``benchmarks/<theme>/<script>.py``) writes its results
+    to: ``benchmarks/results/<theme>``."""
+    from pathlib import Path
+
+    path = Path(script_file).resolve()
+    return path.parents[1] / "results" / path.parent.name
+
+
 def run_in_checkout(root, code: str, *args: str) -> dict:
     """Run Python ``code`` with the ``dexart_lite`` found under ``root`` (a checkout), one thread, in a
     fresh interpreter; return the JSON it prints last. Benchmarks use it to time this checkout and an

@@ -18,12 +18,13 @@ def _private_cache(tmp_path_factory):
 
 @pytest.fixture
 def load_benchmark():
-    """``load_benchmark("bench_distill")`` -> the module of ``benchmarks/bench_distill.py`` (the benchmarks
+    """``load_benchmark("bench_distill")`` -> the module of ``benchmarks/students/bench_distill.py`` (the benchmarks
     are scripts, not a package, so tests load them by path)."""
     folder = Path(__file__).resolve().parent.parent / "benchmarks"
 
     def load(name: str):
-        spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+        path, = folder.glob(f"*/{name}.py")  # benchmarks/<theme>/<name>.py
+        spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         return module

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "curriculum_table.py"
+SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "rl" / "curriculum_table.py"
 
 
 def load():
@@ -16,7 +16,7 @@ def load():
 
 
 def test_the_rl_tables_match_their_json():
-    assert load().stale_tables() == [], "run: python benchmarks/curriculum_table.py --write"
+    assert load().stale_tables() == [], "run: python benchmarks/rl/curriculum_table.py --write"
 
 
 def test_a_changed_number_is_caught(tmp_path, monkeypatch):
@@ -38,7 +38,7 @@ def test_nothing_in_the_repository_links_outside_it():
     """A user's clone has nothing beside it: no tracked text file may point to the reference notes next to ours."""
     import subprocess
 
-    root = SCRIPT.parent.parent
+    root = SCRIPT.parents[2]
     outside = ("../" + "shared", "shared/" + "reference")  # spelt in two parts, so this file does not match itself
     tracked = subprocess.run(["git", "ls-files"], cwd=root, capture_output=True, text=True, check=True).stdout.split()
     offenders = []
@@ -57,7 +57,7 @@ def test_every_relative_link_in_the_docs_resolves():
     import re
     import subprocess
 
-    root = SCRIPT.parent.parent
+    root = SCRIPT.parents[2]
     tracked = subprocess.run(["git", "ls-files", "*.md"], cwd=root, capture_output=True, text=True, check=True).stdout.split()
     broken = []
     for name in (n for n in tracked if not n.startswith("benchmarks/results/")):

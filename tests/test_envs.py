@@ -174,7 +174,7 @@ def test_the_synergy_hand_is_the_joint_hand_driven_by_the_synergy_targets():
 
 def test_the_laptop_expert_projected_on_the_synergies_still_opens_a_laptop():
     """The 3 synergies can express a lid grasp: the scripted expert's hand targets, projected on them
-    (``SynergyScriptedPolicy``), open a seen laptop (benchmarks/synergy_expert.py measures all tasks)."""
+    (``SynergyScriptedPolicy``), open a seen laptop (benchmarks/experts/synergy_expert.py measures all tasks)."""
     from dexart_lite.experts import SynergyScriptedPolicy
 
     env = make("laptop", num_points=32, hand="synergy")

@@ -418,7 +418,7 @@ def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, mon
 
 
 def test_finetune_summary_pools_the_paired_heldout_changes_of_every_variant(tmp_path, load_benchmark):
-    """benchmarks/finetune_summary.py: one row per seed of every finetune_<task>*.json with held-out results
+    """benchmarks/rl/finetune_summary.py: one row per seed of every finetune_<task>*.json with held-out results
     (smoke runs and files without them are left out), the changes averaged by hand."""
     bench = load_benchmark("finetune_summary")
 
@@ -510,7 +510,7 @@ def test_cli_prints_one_line_errors_and_writes_nothing(tmp_path, capsys):
 
 
 def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys, load_benchmark):
-    """benchmarks/bench_distill.py in fast mode writes the documented keys; run again, it reads the
+    """benchmarks/students/bench_distill.py in fast mode writes the documented keys; run again, it reads the
     finished seed back instead of training it again."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     bench = load_benchmark("bench_distill")
@@ -528,7 +528,7 @@ def test_bench_distill_smoke_and_resume(tmp_path, monkeypatch, capsys, load_benc
 
 def test_bench_student_training_smoke_trains_the_same_student_in_every_fp32_variant(tmp_path, monkeypatch,
                                                                                     load_benchmark):
-    """benchmarks/bench_student_training.py in fast mode: the variants that only move data or skip the
+    """benchmarks/perf/bench_student_training.py in fast mode: the variants that only move data or skip the
     weight average train exactly the student fp32 trains (same loss), so their timings compare like for like."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     bench = load_benchmark("bench_student_training")
@@ -569,7 +569,7 @@ def test_bench_student_training_chunks_change_the_speed_not_the_student(monkeypa
 
 
 def test_perception_probe_smoke(tmp_path, monkeypatch, load_benchmark):
-    """benchmarks/perception_probe.py in fast mode: the targets are the expert's privileged state of the
+    """benchmarks/students/perception_probe.py in fast mode: the targets are the expert's privileged state of the
     cloud shown, and every variant reports a finite error per group for both splits."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     probe = load_benchmark("perception_probe")
@@ -614,7 +614,7 @@ def test_bad_architecture_settings_are_rejected(tmp_path):
 
 
 def test_student_failures_smoke(tiny_run, tmp_path, monkeypatch, load_benchmark):
-    """benchmarks/student_failures.py: every episode lands in exactly one outcome class, the expert's
+    """benchmarks/students/student_failures.py: every episode lands in exactly one outcome class, the expert's
     disagreement is finite, and noise is applied (sigma 0 and 0.5 act differently)."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     failures = load_benchmark("student_failures")
@@ -656,7 +656,7 @@ def test_auto_drop_state_masks_the_velocity_on_laptop_only():
 
 def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out_template(tmp_path,
                                                                                           load_benchmark):
-    """benchmarks/success_by_template.py: per split and template, a run's success is the episode-weighted
+    """benchmarks/students/success_by_template.py: per split and template, a run's success is the episode-weighted
     mean over that template's objects; the unseen template-C objects form their own row."""
     bench = load_benchmark("success_by_template")
     runs = []

@@ -507,7 +507,7 @@ def test_tiny_run_with_the_synergy_hand_trains_and_evaluates_a_9d_policy(tmp_pat
 
 
 def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkeypatch, load_benchmark):
-    """benchmarks/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
+    """benchmarks/rl/bench_learning.py --set: typed PPOConfig fields, recorded as departures in the JSON;
     it needs --tag, and fields the script sets itself are refused."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     bench = load_benchmark("bench_learning")
@@ -525,7 +525,7 @@ def test_bench_learning_set_changes_ppo_fields_and_records_them(tmp_path, monkey
 
 def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_identical_runs(
         tmp_path, monkeypatch, load_benchmark):
-    """benchmarks/state_diagnostic.py: one fast run per task and seed through bench_learning; frames to first
+    """benchmarks/rl/state_diagnostic.py: one fast run per task and seed through bench_learning; frames to first
     success is the first batch with a collected success; an earlier JSON is reused only with the same settings."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     bench = load_benchmark("state_diagnostic")

@@ -1,7 +1,7 @@
 """Scripted solvers: each task is solvable through the 22-D action interface.
 
 Seeded and short: a few objects per task, one episode each (the full tables come from
-``dexart-lite solve``, see ``benchmarks/results/solve_*.json``).
+``dexart-lite solve``, see ``benchmarks/results/experts/solve_*.json``).
 """
 
 import pytest
@@ -87,7 +87,7 @@ def test_bucket_stages_go_1_2_3():
 def test_action_noise_of_ppo_init_breaks_the_solver():
     """``solve(action_noise=...)`` adds N(0, sigma) to each action before the env's clip. With PPO's
     initial std of 1 the solver, which succeeds without noise, no longer lifts the lid
-    (``benchmarks/exploration_noise.py`` has the whole sweep)."""
+    (``benchmarks/experts/exploration_noise.py`` has the whole sweep)."""
     kwargs = dict(episodes_per_object=1, object_names=["laptop_11cbb00f39"], progress=False)
     clean, noisy = solve("laptop", action_noise=0.0, **kwargs), solve("laptop", action_noise=1.0, **kwargs)
     assert clean["success_rate"] == 1.0 and noisy["success_rate"] == 0.0
@@ -152,7 +152,7 @@ def test_laptop_expert_is_memoryless():
 
 
 def test_exploration_noise_benchmark_smoke(tmp_path, monkeypatch, load_benchmark):
-    """benchmarks/exploration_noise.py in fast mode: one row per split and noise level, with the
+    """benchmarks/experts/exploration_noise.py in fast mode: one row per split and noise level, with the
     settings it ran; noise-free, the expert solves its first object."""
     import json
 
@@ -187,7 +187,7 @@ def test_exploration_noise_benchmark_averages_its_seeds(monkeypatch, load_benchm
 
 def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a_smoke_run(
         tmp_path, monkeypatch, load_benchmark):
-    """benchmarks/synergy_expert.py in fast mode: one row per task and split from a hand="synergy" env (whose
+    """benchmarks/experts/synergy_expert.py in fast mode: one row per task and split from a hand="synergy" env (whose
     action check refuses a 22-D action); a smoke run is not set beside the committed full-hand success."""
     import json
 
@@ -202,7 +202,7 @@ def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a
 # ----------------------------------------------------------------------------- physics settings
 def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting(tmp_path, monkeypatch,
                                                                                  load_benchmark):
-    """benchmarks/bench_physics.py: a setting ITERATIONSxFRAME_SKIP reaches the env with the control step
+    """benchmarks/perf/bench_physics.py: a setting ITERATIONSxFRAME_SKIP reaches the env with the control step
     kept at 40 ms; the report has a speed and a solver row per setting, the baseline's own differences
     being exactly 1x and 0 (fast mode: 5 steps per episode, a smoke run, not evidence)."""
     from dexart_lite.envs.base import physics_setting
@@ -228,7 +228,7 @@ def test_the_physics_benchmark_keeps_the_control_step_and_compares_every_setting
 
 
 def test_bucket_failure_classes_read_the_bail_angle(load_benchmark):
-    """benchmarks/bucket_expert_failures.py: a failed episode is 'flung over' in the phase where q first
+    """benchmarks/experts/bucket_expert_failures.py: a failed episode is 'flung over' in the phase where q first
     passed +0.6 rad, 'fell back' where it sank under -1.3 rad after rising past -1.0, else 'other'
     in its last phase."""
     classify = load_benchmark("bucket_expert_failures").classify
@@ -243,7 +243,7 @@ def test_bucket_failure_classes_read_the_bail_angle(load_benchmark):
 
 def test_bucket_failure_benchmark_replays_the_noise_curve_episodes(monkeypatch, load_benchmark):
     """In fast mode (one episode of the first seen bucket) the success equals ``solve``'s at the same
-    noise and seed: the same resets and noise draws as benchmarks/exploration_noise.py."""
+    noise and seed: the same resets and noise draws as benchmarks/experts/exploration_noise.py."""
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
     out = load_benchmark("bucket_expert_failures").main(["--sigma", "0.05", "--splits", "seen"])
     seen = out["splits"]["seen"]

@@ -1,4 +1,4 @@
-"""Contracts of the shipped policies (dexart_lite/zoo, benchmarks/zoo_build.py): each loads strictly and acts on
+"""Contracts of the shipped policies (dexart_lite/zoo, benchmarks/students/zoo_build.py): each loads strictly and acts on
 its task, its manifest numbers are those of the JSON they were measured in, and a bad name is one line."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from dexart_lite.rl.checkpoint import checkpoint_path, load_checkpoint, load_pol
 from dexart_lite.rl.env import make_env
 
 ROOT = Path(__file__).resolve().parent.parent
-EVIDENCE = ROOT / "benchmarks" / "results" / "zoo.json"
+EVIDENCE = ROOT / "benchmarks" / "results" / "students" / "zoo.json"
 
 
 def test_every_shipped_policy_loads_strictly_and_acts_on_its_task():

@@ -50,7 +50,7 @@ CONTROL_DT = 0.04  # s: one control step (DexArt's 25 Hz) = dt * frame_skip at t
 def physics_setting(text: str) -> dict:
     """``"20x10"`` (solver iterations x sub-steps per control step) -> the env keywords
     ``{"solver_iterations": 20, "frame_skip": 10, "dt": 0.004}``; the control step stays ``CONTROL_DT``.
-    The defaults are ``"50x10"`` (``benchmarks/bench_physics.py`` checks cheaper ones)."""
+    The defaults are ``"50x10"`` (``benchmarks/perf/bench_physics.py`` checks cheaper ones)."""
     iterations, sep, skip = text.partition("x")
     try:
         iterations, skip = int(iterations), int(skip)

@@ -65,7 +65,7 @@ class ScriptedPolicy:
 class SynergyScriptedPolicy(ScriptedPolicy):
     """The scripted expert for an env with ``hand="synergy"``: its twist, and its 16 hand joint targets
     projected on the 3 synergies (``robot.synergy_action``). How much of an expert survives the projection
-    says whether the synergy hand can still do the task (``benchmarks/synergy_expert.py``)."""
+    says whether the synergy hand can still do the task (``benchmarks/experts/synergy_expert.py``)."""
 
     def __call__(self, obs=None) -> np.ndarray:
         a = super().__call__(obs)  # (22,)

@@ -31,7 +31,7 @@ class FeedbackLidSolver(LidSolver):
     riding are 2.5 and 5 cm wide, the palm aims just short of the inner face, and the fingers close as
     a hook to their joint limits (see the constants). Success under Gaussian action noise of std 0.3 /
     0.5, seen laptops, 3 episodes per object: 0.73 / 0.27 (unseen 0.56 / 0.22), against 0.27 / 0.00
-    before these changes (``benchmarks/results/exploration_noise_laptop.json`` and its history).
+    before these changes (``benchmarks/results/experts/exploration_noise_laptop.json`` and its history).
 
     ``region`` names the rule that chose the last action ("approach", "lift", "wrap", "close" or
     "ride"), for plots and tests; it is an output, never an input.

@@ -1,4 +1,4 @@
-"""How often each expert succeeds over a split (the committed ``benchmarks/results/solve_*.json``), and
+"""How often each expert succeeds over a split (the committed ``benchmarks/results/experts/solve_*.json``), and
 ``dexart-lite solve``.
 
     dexart-lite solve --task laptop --split seen --episodes-per-object 3 --json laptop.json
@@ -31,9 +31,9 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
 
     Episode ``k`` of object ``i`` is reset with seed ``seed + 1000 k + i``. ``action_noise``: std of
     Gaussian noise added to every action dimension before the env's clip to [-1, 1], as PPO's sampled
-    actions (``benchmarks/exploration_noise.py``); drawn from an RNG seeded with ``seed``, separate
+    actions (``benchmarks/experts/exploration_noise.py``); drawn from an RNG seeded with ``seed``, separate
     from the env's. ``env_kwargs``: further keywords of the env (e.g. ``solver_iterations``, for
-    ``benchmarks/bench_physics.py``; ``hand="synergy"``: the expert's hand projected on the synergies).
+    ``benchmarks/perf/bench_physics.py``; ``hand="synergy"``: the expert's hand projected on the synergies).
     """
     from dexart_lite.envs import make
 

@@ -65,7 +65,7 @@ CHECKPOINT = "checkpoint.pt"
 # laptop students from 0.29 / 0.37 to 0.56 / 0.43 (seen / unseen, 3 seeds each). On faucets the same
 # mask cut them from 0.58 / 0.40 to 0.28 / 0.25 (3 seeds; turning a handle may need its speed), so
 # the other tasks keep the full state (toilet and bucket are not measured).
-# Evidence: benchmarks/results/distill_{laptop,laptop_novel,faucet,faucet_novel}.json.
+# Evidence: benchmarks/results/students/distill_{laptop,laptop_novel,faucet,faucet_novel}.json.
 DROP_STATE = {t: spec.student_drops for t, spec in SPECS.items() if spec.student_drops}  # registration.SPECS
 
 

@@ -167,7 +167,7 @@ class Acting(TensorDictModuleBase):
     ``action``, ``action_log_prob`` and ``state_value``, with the same numbers (a test checks them,
     the random action included). tensordict's generic modules cost about as much as the small
     network they wrap: one action on one observation, 1 thread, takes 1.27 ms as ``actor_critic(td)``
-    and 0.77 ms here (``benchmarks/bench_training.py``, ``policy_call_ms``; each module output write
+    and 0.77 ms here (``benchmarks/perf/bench_training.py``, ``policy_call_ms``; each module output write
     even searches ``sys.path`` for pandas). This class goes to the collectors and acts in evaluation
     and DAgger; the loss keeps the torchrl modules.
 

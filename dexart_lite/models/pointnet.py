@@ -35,7 +35,7 @@ FILE_VERSION = 1
 # clouds per per-point pass: (8, 608, 256) float32 activations (5 MB) stay nearer the cores than one
 # pass over the whole batch. 32 was measured 1.5-2x faster than no chunks on a Xeon VM; on the AMD EPYC
 # VM 8 trains the large PointNet 1.35x, the medium 1.04x and the small 1.13x faster than 32 (the same
-# losses; benchmarks/bench_student_training.py --chunks, results/bench_student_training_chunks.json)
+# losses; benchmarks/perf/bench_student_training.py --chunks, results/perf/bench_student_training_chunks.json)
 CHUNK = 8
 
 
@@ -75,7 +75,7 @@ class PointNetEncoder(nn.Module):
         recomputation of the winning points alone, each once (one point often wins many channels:
         ~26 distinct winners of 256 channels per cloud at initialisation, ~45 in a trained laptop
         student), then the last layer's channel f on channel f's winner (measured in
-        benchmarks/bench_training.py; the PPO update is the CPU bottleneck).
+        benchmarks/perf/bench_training.py; the PPO update is the CPU bottleneck).
         """
         c = self.in_channels
         if points.shape[-1] != c or points.dim() < 2:

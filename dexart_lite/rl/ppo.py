@@ -201,7 +201,7 @@ class PPOConfig:
         return kwargs
 
 
-# Named presets: the fields they change. Measured in benchmarks/bench_training.py (see README there).
+# Named presets: the fields they change. Measured in benchmarks/perf/bench_training.py (see README there).
 PRESETS: dict[str, dict] = {
     "faithful": {},
     # Same algorithm, 5x smaller batches (4k frames: 2 workers x 2000 steps, 8 full episodes) and 5 epochs:
@@ -215,16 +215,16 @@ PRESETS: dict[str, dict] = {
     # DexArt's 3 evaluation episodes per object of the distillation benchmark. Measured on a laptop student
     # (0.42 / 0.44): without the last four guards it collapsed to 0.03 / 0.00 in 100k frames; with them it
     # ends at 0.42 / 0.22 after 300k, the success of its collected episodes falling from 0.45 to about 0.2
-    # (benchmarks/results/finetune_laptop_{collapse,klstop,klstop_bc}.json). Held out (20 episodes per
+    # (benchmarks/results/rl/finetune_laptop_{collapse,klstop,klstop_bc}.json). Held out (20 episodes per
     # object, env seed 1000, 2 seeds): on faucets it raises seen success and keeps unseen (0.60 / 0.57 ->
     # 0.69 / 0.56, finetune_faucet.json); with --anchor-coef 1 the laptop students improve on both splits
     # (0.63 / 0.65 -> 0.70 / 0.73, finetune_laptop_anchor.json).
     # From scratch on 2 cores (issue 16): the cpu preset with the departures the state-only diagnostic
     # uses (lr 3e-4, not 1e-4; rewards x 0.01, not x 1, so the critic fits values of order 1 although the
     # success bonus reaches ~300; initial action std 0.3, not 1: with std 1 even the expert never lifts
-    # a lid, benchmarks/exploration_noise.py) plus a fixed input normalisation from 2,000 steps of the
+    # a lid, benchmarks/experts/exploration_noise.py) plus a fixed input normalisation from 2,000 steps of the
     # initial policy (DexArt feeds raw inputs; "What matters in on-policy RL" and the SB3 zoo normalise).
-    # Measured against the same settings without normalisation (benchmarks/state_diagnostic.py, state only,
+    # Measured against the same settings without normalisation (benchmarks/rl/state_diagnostic.py, state only,
     # 2 seeds, 300k frames): no change; neither opens a laptop, and on faucets both collect a success now
     # and then (best batch 0.06-0.24) while the deterministic policy opens none. A starting point, not a recipe.
     "fast": {"frames_per_batch": 4000, "epochs": 5, "lr": 3e-4, "reward_scale": 0.01, "init_log_std": -1.2,

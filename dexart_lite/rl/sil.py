@@ -21,7 +21,7 @@ clipping already zeroes the steps that teach nothing). A resumed run starts with
 
 Measured (README, 2 seeds each, weight 1): from scratch on the state-only faucet and laptop, no change in
 300k frames; fine-tuning faucet students, seen success up and unseen down, as without it
-(benchmarks/results/state_diagnostic_fast_sil_{faucet,laptop}.json, finetune_faucet_sil.json).
+(benchmarks/results/rl/state_diagnostic_fast_sil_{faucet,laptop}.json, finetune_faucet_sil.json).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ Every command that reads a checkpoint (``eval``, ``render``, ``train --init-from
 ``--guide``) accepts the spelling ``zoo:<task>``: ``dexart_lite.rl.checkpoint.load_checkpoint`` resolves it
 here. ``manifest.json`` (beside this file) says, for each entry, how the policy was trained (command,
 frames, seed, machine) and the seen / unseen success it was measured at, copied from the JSON that
-``benchmarks/zoo_build.py`` wrote (``benchmarks/results/zoo.json``). Each file is <= 2 MB: the weights and
+``benchmarks/students/zoo_build.py`` wrote (``benchmarks/results/students/zoo.json``). Each file is <= 2 MB: the weights and
 the run's config, without the optimizer.
 """
 

@@ -1,0 +1,272 @@
+"""The evidence runs of issue 6: segmentation mIoU per task, PPO from segmentation pretraining vs.
+from scratch, and the PPO-fine-tuned encoder put back under the segmentation head.
+
+    # 1. per task: DAM data (seen + unseen), segmentation pretraining, mIoU on seen / unseen objects
+    python benchmarks/pretraining/pretraining_evidence.py seg --tasks faucet,bucket,laptop,toilet
+    # 2. Laptop PPO, pretrained vs. scratch: same frames, same seeds, same settings otherwise
+    python benchmarks/pretraining/pretraining_evidence.py ppo --task laptop --frames 100000 --seeds 0
+    # 3. the fine-tuned encoder of the pretrained arm under the segmentation head it started with
+    python benchmarks/pretraining/pretraining_evidence.py after-ppo --task laptop --seed 0
+    # 4. the other methods: cls on the objects-only set, recon and simsiam on Laptop DAM
+    python benchmarks/pretraining/pretraining_evidence.py methods --epochs 5
+
+Work files (datasets, runs) go to ``--root`` (default ``runs/pretrain``, not committed); the
+results (JSON, markdown tables, PNGs) to ``--results`` (default ``benchmarks/results/pretraining``).
+Steps that find their output already present are skipped, so an interrupted run can be restarted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+from dexart_lite.models.pointnet import PointNetEncoder, load_encoder
+from dexart_lite.pretrain import data as datasets
+from dexart_lite.pretrain import train as pretrain
+from dexart_lite.pretrain.figures import plot_segmentation
+from dexart_lite.registration import TASKS
+from dexart_lite.utils import machine_info
+
+CLASS_WEIGHTS = {"bucket": "3,1,1,1"}  # DexArt's segmentation weights (functional part up-weighted)
+FIGURE_CLOUDS = 2  # per split in the true-vs-predicted pictures
+
+
+def dataset_dir(root: Path, task: str) -> Path:
+    return root / "data" / f"dam_{task}"
+
+
+def seg_dir(root: Path, task: str) -> Path:
+    return root / f"seg_{task}"
+
+
+def segmentation_figure(encoder, head, data_root: Path, path: Path, title: str) -> Path:
+    """True vs. predicted labels of ``FIGURE_CLOUDS`` validation (seen) and test (unseen) clouds."""
+    clouds, true, pred, titles = [], [], [], []
+    for part, split in (("val", "seen"), ("test", "unseen")):
+        data = datasets.load_part(data_root, part)
+        picks = torch.linspace(0, len(data) - 1, FIGURE_CLOUDS).round().long()  # spread over the objects
+        with torch.no_grad():
+            labels = pretrain.segment_logits(encoder, head, data.points[picks]).argmax(-1)
+        for i, k in enumerate(picks):
+            clouds.append(data.points[k])
+            true.append(data.labels[k])
+            pred.append(labels[i])
+            titles.append(f"{title}: {split} {data.objects[int(data.object_index[k])]['name']}")
+    plot_segmentation(clouds, true, pred, titles, path=path)
+    return path
+
+
+def run_seg(args) -> int:
+    rows = {}
+    results = args.results / "seg_miou.json"
+    if results.exists():
+        rows = json.loads(results.read_text())["tasks"]
+    for task in args.tasks.split(","):
+        data_root = dataset_dir(args.root, task)
+        if not (data_root / "unseen" / datasets.MANIFEST).exists():
+            datasets.generate_dam(datasets.DamConfig(task=task, split="all", samples_per_object=args.samples_per_object,
+                                                     out=str(data_root), seed=args.seed))
+        out = seg_dir(args.root, task)
+        if not (out / "metrics.json").exists():
+            pretrain.train(pretrain.PretrainConfig(method="seg", data=str(data_root), out=str(out), epochs=args.epochs,
+                                                   class_weights=CLASS_WEIGHTS.get(task), seed=args.seed))
+        metrics = json.loads((out / "metrics.json").read_text())
+        manifests = [datasets.read_manifest(data_root / s) for s in ("seen", "unseen")]
+        rows[task] = {
+            "miou_seen": metrics["val"]["miou"], "miou_unseen": metrics["test"]["miou"],
+            "iou_seen": metrics["val"]["iou"], "iou_unseen": metrics["test"]["iou"],
+            "clouds": {p: e["count"] for m in manifests for p, e in m["parts"].items()},
+            "class_weights": metrics["config"]["class_weights"], "epochs": metrics["epochs"],
+            "seconds_per_epoch": round(metrics["seconds_per_epoch"], 1),
+            "pretrain_minutes": round(metrics["wall_seconds"] / 60, 1),
+            "data_minutes": round(sum(m["seconds"] for m in manifests) / 60, 1),
+            "ms_per_cloud": [m["ms_per_sample"] for m in manifests]}
+        encoder = load_encoder(out / "encoder.pt")
+        _, head = pretrain.load_head(out / "head.pt")
+        segmentation_figure(encoder, head, data_root, args.results / f"seg_{task}.png", task)
+        args.results.mkdir(parents=True, exist_ok=True)
+        results.write_text(json.dumps({"machine": machine_info(), "samples_per_object": args.samples_per_object,
+                                       "tasks": rows}, indent=2) + "\n")
+        print(f"{task}: mIoU seen {rows[task]['miou_seen']:.3f}, unseen {rows[task]['miou_unseen']:.3f}", flush=True)
+    lines = ["| task | mIoU seen (val) | mIoU unseen (test) | IoU functional part seen / unseen | train clouds | "
+             "epochs | data min | pretrain min |", "|---|---|---|---|---|---|---|---|"]
+    for task, r in rows.items():
+        lines.append(f"| {task} | {r['miou_seen']:.3f} | {r['miou_unseen']:.3f} | "
+                     f"{r['iou_seen']['functional_part']:.3f} / {r['iou_unseen']['functional_part']:.3f} | "
+                     f"{r['clouds']['train']} | {r['epochs']} | {r['data_minutes']} | {r['pretrain_minutes']} |")
+    (args.results / "seg_miou.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+def ppo_dir(root: Path, arm: str, task: str, seed: int) -> Path:
+    return root / f"ppo_{task}_{arm}_seed{seed}"
+
+
+def run_ppo(args) -> int:
+    from dexart_lite.rl import ppo
+
+    encoder = seg_dir(args.root, args.task) / "encoder.pt"
+    if not encoder.exists():
+        raise FileNotFoundError(f"{encoder} missing: run the `seg` step for {args.task} first")
+    arms = {"scratch": None, "pretrained": str(encoder)}
+    summary = {"task": args.task, "frames": args.frames, "seeds": args.seeds, "preset": args.preset,
+               "eval_episodes_per_object": args.eval_episodes, "machine": machine_info(), "arms": {}}
+    for arm, pretrained in arms.items():
+        summary["arms"][arm] = {"runs": []}
+        for seed in args.seeds:
+            out = ppo_dir(args.root, arm, args.task, seed)
+            if not (out / "eval_unseen.json").exists():
+                start = time.perf_counter()
+                ppo.train(ppo.preset(args.preset, task=args.task, frames=args.frames, seed=seed, out=str(out),
+                                     pretrained=pretrained, eval_episodes=args.eval_episodes, workers=args.workers,
+                                     resume=(out / ppo.CHECKPOINT).exists()))
+                print(f"{arm} seed {seed}: {(time.perf_counter() - start) / 60:.1f} min", flush=True)
+            history = ppo.load_checkpoint(out / ppo.CHECKPOINT)["history"]
+            evals = {s: json.loads((out / f"eval_{s}.json").read_text()) for s in ("seen", "unseen")}
+            summary["arms"][arm]["runs"].append({
+                "seed": seed, "out": str(out), "success_seen": evals["seen"]["success_rate"],
+                "success_unseen": evals["unseen"]["success_rate"],
+                "wall_minutes": round(history[-1]["wall_s"] / 60, 1),
+                "curve": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "progress")} for h in history]})
+        runs = summary["arms"][arm]["runs"]
+        for split in ("seen", "unseen"):
+            summary["arms"][arm][f"success_{split}"] = sum(r[f"success_{split}"] for r in runs) / len(runs)
+    args.results.mkdir(parents=True, exist_ok=True)
+    name = f"ppo_{args.task}_pretrained_vs_scratch"
+    (args.results / f"{name}.json").write_text(json.dumps(summary, indent=2) + "\n")
+    plot_ppo(summary, args.results / f"{name}.png")
+    for arm, r in summary["arms"].items():
+        print(f"{arm}: success seen {r['success_seen']:.2f}, unseen {r['success_unseen']:.2f}")
+    return 0
+
+
+def plot_ppo(summary: dict, path: Path) -> Path:
+    """Training-episode return and progress against frames, one line per arm and seed."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 3.4))
+    axes = fig.subplots(1, 3)
+    colours = {"scratch": "tab:gray", "pretrained": "tab:red"}
+    for arm, r in summary["arms"].items():
+        for run in r["runs"]:
+            frames = [h["frames"] for h in run["curve"]]
+            label = f"{arm} (seed {run['seed']})"
+            for ax, key in zip(axes, ("episode_return", "progress", "success_rate")):
+                ax.plot(frames, [h[key] for h in run["curve"]], marker=".", color=colours[arm], label=label)
+    for ax, title in zip(axes, ("training episode return", "mean task progress", "training success rate")):
+        ax.set(xlabel="env frames", title=title)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"PPO {summary['task']}: segmentation-pretrained vs. scratch encoder, {summary['preset']} preset")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    return path
+
+
+def run_after_ppo(args) -> int:
+    from dexart_lite.models.actor_critic import encoder_of
+    from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+
+    data_root, seg = dataset_dir(args.root, args.task), seg_dir(args.root, args.task)
+    _, head = pretrain.load_head(seg / "head.pt")
+    encoders = {"after segmentation pretraining": load_encoder(seg / "encoder.pt")}
+    for arm in ("pretrained", "scratch"):
+        checkpoint = ppo_dir(args.root, arm, args.task, args.seed) / "checkpoint.pt"
+        if checkpoint.exists():
+            payload = load_checkpoint(checkpoint)
+            encoders[f"after PPO ({arm} arm, {payload['frames']:,} frames)"] = encoder_of(
+                actor_critic_from_checkpoint(payload, checkpoint))
+    result = {"task": args.task, "head": str(seg / "head.pt"), "encoders": {}}
+    for name, encoder in encoders.items():
+        encoder.eval()
+        metrics = {part: pretrain.evaluate("seg", encoder, head, datasets.load_part(data_root, part))
+                   for part in ("val", "test")}
+        result["encoders"][name] = {"miou_seen": metrics["val"]["miou"], "miou_unseen": metrics["test"]["miou"],
+                                    "iou_seen": metrics["val"]["iou"], "iou_unseen": metrics["test"]["iou"]}
+        print(f"{name}: mIoU seen {metrics['val']['miou']:.3f}, unseen {metrics['test']['miou']:.3f}", flush=True)
+    finetuned = next((e for n, e in encoders.items() if "pretrained arm" in n), None)
+    if finetuned is not None:
+        segmentation_figure(finetuned, head, data_root, args.results / f"seg_{args.task}_after_ppo.png",
+                            f"{args.task} after PPO")
+    args.results.mkdir(parents=True, exist_ok=True)
+    (args.results / f"seg_{args.task}_after_ppo.json").write_text(json.dumps(result, indent=2) + "\n")
+    return 0
+
+
+def run_methods(args) -> int:
+    """cls on the objects-only set; recon and simsiam on the task's DAM set (made by the ``seg`` step)."""
+    objects_root = args.root / "data" / "objects"
+    if not (objects_root / "unseen" / datasets.MANIFEST).exists():
+        datasets.generate_objects(datasets.ObjectsConfig(samples_per_object=args.object_samples, out=str(objects_root),
+                                                         seed=args.seed))
+    dam = dataset_dir(args.root, args.task)
+    if not (dam / "unseen" / datasets.MANIFEST).exists():
+        raise FileNotFoundError(f"{dam} missing: run the `seg` step for {args.task} first")
+    results = {}
+    for method, data in (("cls", objects_root), ("simsiam", objects_root), ("recon", dam), ("simsiam", dam)):
+        name = f"{method}_{'objects' if data == objects_root else args.task}"
+        out = args.root / name
+        if not (out / "metrics.json").exists():
+            pretrain.train(pretrain.PretrainConfig(method=method, data=str(data), out=str(out), epochs=args.epochs,
+                                                   seed=args.seed))
+        metrics = json.loads((out / "metrics.json").read_text())
+        results[name] = {k: metrics[k] for k in ("method", "kind", "train_clouds", "epochs", "seconds_per_epoch",
+                                                 "wall_seconds", "val", "test") if k in metrics}
+        if method == "simsiam":  # the k-NN probe with an untrained encoder: what the training adds
+            results[name]["knn_accuracy_untrained_val"] = untrained_knn(data, args.seed)
+        key = pretrain.MAIN_METRIC[method]
+        print(f"{name}: val {key} {metrics['val'].get(key)}, test {metrics.get('test', {}).get(key)}", flush=True)
+    args.results.mkdir(parents=True, exist_ok=True)
+    (args.results / "methods.json").write_text(json.dumps({"machine": machine_info(), "runs": results}, indent=2) + "\n")
+    return 0
+
+
+def untrained_knn(data_root: Path, seed: int) -> float:
+    """SimSiam's validation k-NN accuracy with a freshly initialised encoder (same bank and target)."""
+    torch.manual_seed(seed)
+    encoder = PointNetEncoder("small")
+    train_set, val_set = datasets.load_part(data_root, "train"), datasets.load_part(data_root, "val")
+    subset = train_set.subset(torch.randperm(len(train_set), generator=torch.Generator().manual_seed(0))[:pretrain.KNN_BANK])
+    by_category = pretrain.knn_target(train_set) == "category"
+    bank = (pretrain.encode_all(encoder, subset), subset.category if by_category else subset.object_index)
+    target = val_set.category if by_category else val_set.object_index
+    return pretrain.knn_accuracy(*bank, pretrain.encode_all(encoder, val_set), target)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--root", type=Path, default=Path("runs/pretrain"), help="datasets and runs")
+    parser.add_argument("--results", type=Path, default=Path("benchmarks/results/pretraining"))
+    sub = parser.add_subparsers(dest="step", required=True)
+    seg = sub.add_parser("seg", help="DAM data + segmentation pretraining + mIoU per task")
+    seg.add_argument("--tasks", default=",".join(TASKS))
+    seg.add_argument("--samples-per-object", type=int, default=datasets.DEFAULT_DAM_SAMPLES)
+    seg.add_argument("--epochs", type=int, default=10)
+    seg.add_argument("--seed", type=int, default=0)
+    ppo_parser = sub.add_parser("ppo", help="PPO from the segmentation encoder vs. from scratch")
+    ppo_parser.add_argument("--task", default="laptop")
+    ppo_parser.add_argument("--frames", type=int, default=100_000)
+    ppo_parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ppo_parser.add_argument("--preset", default="cpu")
+    ppo_parser.add_argument("--workers", type=int, default=2)
+    ppo_parser.add_argument("--eval-episodes", type=int, default=4, help="per object, seen and unseen")
+    after = sub.add_parser("after-ppo", help="the PPO-fine-tuned encoder under the segmentation head")
+    after.add_argument("--task", default="laptop")
+    after.add_argument("--seed", type=int, default=0)
+    methods = sub.add_parser("methods", help="cls, recon and simsiam runs with their metrics")
+    methods.add_argument("--task", default="laptop")
+    methods.add_argument("--epochs", type=int, default=5)
+    methods.add_argument("--object-samples", type=int, default=datasets.DEFAULT_OBJECT_SAMPLES)
+    methods.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    return {"seg": run_seg, "ppo": run_ppo, "after-ppo": run_after_ppo, "methods": run_methods}[args.step](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

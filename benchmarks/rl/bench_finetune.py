@@ -1,0 +1,231 @@
+"""PPO from distilled students: does reinforcement learning improve a DAgger student? Over seeds.
+
+    python benchmarks/rl/bench_finetune.py --task laptop --seeds 0 1 --frames 100000 \
+        --students 'runs/distill_laptop_dagger_novel_s{seed}' --json benchmarks/results/rl/finetune_laptop.json
+
+Seed ``s`` fine-tunes the student in ``--students`` (``{seed}`` filled in) with ``dexart-lite train
+--preset finetune --init-from <student>/checkpoint.pt --seed s`` into
+``runs/finetune_<task>[_<variant>]_s<seed>``; ``--set FIELD=VALUE`` changes PPOConfig fields (with
+``--variant``, e.g. ``--variant nowarmup --set critic_warmup=0`` for the run without the critic
+warm-up). A finished seed is read back, an interrupted one resumes from its checkpoint. Seeds run one
+after the other, alone.
+
+The student's success is its own evaluation (``eval_<split>.json`` of the distillation run, same
+evaluation seed and episodes per object; re-evaluated if those differ): it is the curve's frame 0.
+Writes ``student_seen``, ``student_unseen``, ``seen_success``, ``unseen_success`` (means over seeds),
+``per_seed`` (with the per-batch log: success and stage fractions of the collected, stochastic
+episodes, the losses, ``critic_warmup``), ``frames``, ``wall_time_s`` (per seed, PPO and its final
+evaluation), ``command``, ``machine``; and a PNG next to the JSON.
+
+``--heldout-episodes N --heldout-seed S`` adds a second, larger evaluation of every seed's student and
+final policy, on an evaluation seed that took no part in choosing settings (the per-run evaluation
+above, 3 episodes per object, cannot separate a 0.1 change on 6 unseen objects). Its results are
+cached next to each checkpoint (``heldout_<split>_e<N>_seed<S>.json``) and run ``--jobs`` at a time
+(success does not depend on timing, so these may run side by side).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+import dexart_lite
+from dexart_lite.rl import ppo
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
+from dexart_lite.rl.evaluate import evaluate, evaluate_checkpoint
+from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, write_json
+
+RESULTS = benchmark_results(__file__)
+SPLITS = ("seen", "unseen")
+KEEP = ("frames", "batch", "success_rate", "episode_return", "stage2_frac", "stage3_frac", "progress",
+        "loss_objective", "loss_critic", "explained_variance", "kl_approx", "clip_fraction", "log_std",
+        "critic_warmup", "bc_weight", "kl_init", "update_steps_frac", "loss_sil", "sil_positive", "wall_s")
+
+
+def student_success(student: Path, cfg: ppo.PPOConfig) -> dict:
+    """The student's deterministic success per split: its distillation evaluation when that used the
+    same evaluation seed, episodes and cloud size as ``cfg``; else evaluated now."""
+    payload = load_checkpoint(student / "checkpoint.pt")
+    own = payload["config"]
+    same = (own.get("eval_seed"), own.get("eval_episodes"), own.get("num_points"), own.get("max_episode_steps")) == \
+        (cfg.eval_seed, cfg.eval_episodes, cfg.num_points, cfg.max_episode_steps)
+    out = {}
+    for split in SPLITS:
+        file = student / f"eval_{split}.json"
+        if same and file.exists():
+            out[split] = json.loads(file.read_text())["success_rate"]
+        else:
+            net = actor_critic_from_checkpoint(payload, student / "checkpoint.pt")
+            out[split] = evaluate(net, cfg.task, split, cfg.eval_episodes, cfg.eval_seed, cfg.env_kwargs())["success_rate"]
+    return out
+
+
+def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
+    """One seed: read back a finished run with the same settings, resume an interrupted one, or run it."""
+    out = Path(cfg.out)
+    record = out / "bench.json"
+    if record.exists():
+        done = json.loads(record.read_text())
+        # a field added to PPOConfig after the run was recorded: the run had that field's default behaviour
+        defaults = {f.name: f.default for f in dataclasses.fields(ppo.PPOConfig)}
+        if {**defaults, **done["config"]} == dataclasses.asdict(cfg):
+            print(f"{out}: finished before, read back")
+            return done
+        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --runs folder")
+    before = student_success(student, cfg)
+    resume = (out / ppo.CHECKPOINT).exists()
+    result = ppo.train(dataclasses.replace(cfg, resume=resume))
+    keep = {"student_seen": before["seen"], "student_unseen": before["unseen"],
+            "seen_success": result["eval"]["seen"]["success_rate"],
+            "unseen_success": result["eval"]["unseen"]["success_rate"],
+            "frames": result["frames"], "wall_time_s": result["wall_time_s"], "resumed": resume,
+            "history": [{k: row[k] for k in KEEP if k in row} for row in result["history"]],
+            "config": dataclasses.asdict(cfg)}
+    write_json(record, keep)
+    return keep
+
+
+def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
+    """Student and final policy of every seed evaluated with ``episodes`` per object on both splits at
+    env seed ``seed``; each evaluation cached as JSON next to its checkpoint."""
+    cached = lambda folder, split: Path(folder) / f"heldout_{split}_e{episodes}_seed{seed}.json"  # noqa: E731
+    todo = {}
+    for r in per_seed:
+        for folder in (Path(r["student"]), Path(r["config"]["out"])):
+            for split in SPLITS:
+                cache = cached(folder, split)
+                if not cache.exists():
+                    todo[cache] = (str(folder / ppo.CHECKPOINT), split, episodes, seed)
+    if todo:
+        print(f"held-out evaluation: {len(todo)} runs of {episodes} episodes per object, {jobs} at a time")
+        if jobs > 1:  # spawned workers: pybullet and torch do not survive a fork of a busy parent
+            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+                results = dict(zip(todo, pool.map(evaluate_checkpoint, *zip(*todo.values()))))
+        else:
+            results = {cache: evaluate_checkpoint(*job) for cache, job in todo.items()}
+        for cache, result in results.items():
+            write_json(cache, result)
+
+    def rates(folder: str) -> dict:
+        out = {}
+        for split in SPLITS:
+            res = json.loads(cached(folder, split).read_text())
+            out[split] = {"success": res["success_rate"], "episodes": res["episodes"],
+                          "objects": {name: o["success_rate"] for name, o in res["objects"].items()}}
+        return out
+
+    rows = []
+    for r in per_seed:
+        before, after = rates(r["student"]), rates(r["config"]["out"])
+        rows.append({"seed": r["seed"], "student_seen": before["seen"]["success"],
+                     "student_unseen": before["unseen"]["success"], "seen_success": after["seen"]["success"],
+                     "unseen_success": after["unseen"]["success"],
+                     "episodes": {split: after[split]["episodes"] for split in SPLITS},
+                     "objects": {"student": {s: before[s]["objects"] for s in SPLITS},
+                                 "final": {s: after[s]["objects"] for s in SPLITS}}})
+    keys = ("student_seen", "student_unseen", "seen_success", "unseen_success")
+    return {"episodes_per_object": episodes, "seed": seed,
+            **{k: float(np.mean([row[k] for row in rows])) for k in keys}, "per_seed": rows}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--students", required=True, help="student run folder per seed, with {seed}")
+    parser.add_argument("--frames", type=int, default=300_000, help="PPO frames per seed")
+    parser.add_argument("--runs", type=Path, default=Path("runs"), help="parent of the per-seed run folders")
+    parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
+                        help="PPOConfig fields to change from the finetune preset, e.g. critic_warmup=0")
+    parser.add_argument("--variant", default="", help="a name for --set, in the run folders")
+    parser.add_argument("--json", type=Path, help="default benchmarks/results/rl/finetune_<task>.json")
+    parser.add_argument("--heldout-episodes", type=int, default=0,
+                        help="also evaluate students and final policies with this many episodes per object")
+    parser.add_argument("--heldout-seed", type=int, default=1000, help="env seed of the held-out evaluation")
+    parser.add_argument("--jobs", type=int, default=1, help="held-out evaluations run side by side")
+    args = parser.parse_args(argv)
+    requested = parse_overrides(args.overrides, ppo.PPOConfig)
+    if requested and not args.variant:
+        raise ValueError("--set needs a --variant name (its runs must not mix with the defaults' folders)")
+    path = args.json or RESULTS / f"finetune_{args.task}.json"
+    overrides = dict(requested)
+    if fast_mode():  # a smoke run of the script itself, not evidence
+        overrides.update(num_points=32, max_episode_steps=10, frames_per_batch=100, minibatch=50, epochs=1,
+                         workers=0, eval_episodes=1, critic_warmup=1, progress=False)
+        if args.json is None:
+            path = args.runs / "bench_finetune_fast.json"
+
+    per_seed = []
+    for seed in args.seeds:
+        student = Path(args.students.format(seed=seed))
+        name = "_".join(filter(None, ("finetune", args.task, args.variant, f"s{seed}")))
+        cfg = ppo.preset("finetune", task=args.task, frames=args.frames, seed=seed, out=str(args.runs / name),
+                         init_from=str(student / "checkpoint.pt"), **overrides)
+        per_seed.append({"seed": seed, "student": str(student), **run_seed(cfg, student)})
+        r = per_seed[-1]
+        print(f"seed {seed}: student {r['student_seen']:.2f} / {r['student_unseen']:.2f} -> PPO "
+              f"{r['seen_success']:.2f} / {r['unseen_success']:.2f} (seen / unseen), {r['wall_time_s'] / 60:.1f} min")
+
+    mean = lambda key: float(np.mean([r[key] for r in per_seed]))  # noqa: E731
+    std = lambda key: float(np.std([r[key] for r in per_seed]))  # noqa: E731
+    result = {"task": args.task, "seeds": args.seeds, "preset": "finetune", "variant": args.variant,
+              "overrides": requested, "frames": args.frames,
+              **{k: mean(k) for k in ("student_seen", "student_unseen", "seen_success", "unseen_success")},
+              **{f"{k}_std": std(k) for k in ("seen_success", "unseen_success")},
+              "wall_time_s": [round(r["wall_time_s"], 1) for r in per_seed],
+              "eval_episodes_per_object": per_seed[0]["config"]["eval_episodes"], "per_seed": per_seed,
+              **provenance(__file__, argv),
+              "note": "PPO (reinforcement learning) started from DAgger students; frame 0 is the student"}
+    if args.heldout_episodes:
+        result["heldout"] = heldout(per_seed, args.heldout_episodes, args.heldout_seed, args.jobs)
+        h = result["heldout"]
+        print(f"held-out ({args.heldout_episodes} episodes per object, seed {args.heldout_seed}): students "
+              f"{h['student_seen']:.2f} / {h['student_unseen']:.2f} -> PPO {h['seen_success']:.2f} / "
+              f"{h['unseen_success']:.2f}")
+    write_json(path, result)
+    plot(per_seed, path.with_suffix(".png"), f"PPO from DAgger students, {args.task}"
+         + (f" ({args.variant})" if args.variant else ""), result.get("heldout"))
+    print(f"{args.task}: students {result['student_seen']:.2f} / {result['student_unseen']:.2f} -> PPO "
+          f"{result['seen_success']:.2f} / {result['unseen_success']:.2f}; wrote {path}")
+    return result
+
+
+def plot(per_seed: list[dict], path: Path, title: str, held: dict | None = None) -> None:
+    """Deterministic success at frame 0 (the student) and at the end (seen: solid, unseen: dashed), the
+    success of the collected, stochastic episodes of every batch (thin) and, if given, the held-out
+    evaluation's means over seeds (black)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for r in per_seed:
+        end = r["frames"]
+        line, = ax.plot([0, end], [r["student_seen"], r["seen_success"]], marker="o", label=f"seed {r['seed']}: seen")
+        ax.plot([0, end], [r["student_unseen"], r["unseen_success"]], marker="s", ls="--", color=line.get_color(),
+                label=f"seed {r['seed']}: unseen")
+        rows = [h for h in r["history"] if h.get("success_rate") == h.get("success_rate")]  # skip NaN
+        ax.plot([h["frames"] for h in rows], [h["success_rate"] for h in rows], lw=0.8, alpha=0.5,
+                color=line.get_color(), label=f"seed {r['seed']}: collected episodes (std {np.exp(r['history'][0]['log_std']):.2f})")
+    if held:
+        end = per_seed[0]["frames"]
+        for split, ls, marker in (("seen", "-", "o"), ("unseen", "--", "s")):
+            ax.plot([0, end], [held[f"student_{split}"], held[f"{split}_success"]], color="black", lw=2, ls=ls,
+                    marker=marker, label=f"held-out, mean of seeds ({held['episodes_per_object']} per object): {split}")
+    ax.set(xlabel="PPO frames", ylabel="success rate", ylim=(-0.05, 1.05), title=title)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,236 @@
+"""RL that starts from the experts: one recipe on one task and observation, several seeds, evaluated from the true reset.
+
+    python benchmarks/rl/curriculum_runs.py --task laptop --obs state --recipe reverse_bc --seeds 0 1 --jobs 2 \
+        --frames 1000000 --max-minutes 60
+    python benchmarks/rl/curriculum_runs.py ...               # again: a seed with a checkpoint in --runs is resumed
+
+Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<obs>_<recipe>_s<seed>`` (with
+``--jobs 2`` two seeds train at once, one collector process each). Written, after every finished seed, to
+``benchmarks/results/rl/curriculum/<task>_<obs>_<recipe>.json``:
+
+    task, obs, recipe, settings (the PPOConfig fields the recipe sets), frames (online env frames per seed,
+    the guide's steps excluded), demo_frames (the demonstrations' steps, counted apart), per_seed (seed,
+    frames, seen_success, unseen_success, wall_time_s, demo_frames, guide_success, curve: frames, success of
+    the collected episodes, of those from the true reset (h = 0) and from the frontier, the mean frontier),
+    seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
+
+Evaluation: deterministic actions from the true reset (no guide), ``--eval-episodes`` per seen and unseen
+object, env seed 100, as ``dexart-lite eval``. The guide and the demonstrations are the scripted experts,
+which read the simulator: they are used in training only; the policy observes what it always does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import torch
+
+import dexart_lite
+from dexart_lite.objects import list_objects
+from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig, distill
+from dexart_lite.rl import ppo, sac
+from dexart_lite.utils import benchmark_results, fast_mode, machine_info, provenance, write_json
+
+RESULTS = benchmark_results(__file__) / "curriculum"
+# Recipes: the fast preset (4k frames per batch, 5 epochs, lr 3e-4, rewards x 0.01) plus these fields.
+# reverse_bc: RFCL's reverse curriculum (a frontier per demonstration, moved back 5 steps after 3 successes in
+# a row from it) on a policy cloned from the expert first (30 epochs of MSE on 4 noisy expert episodes per
+# training object, inputs normalised with their statistics), whose critic learns alone for 3 batches, with a
+# BC term (weight 0.5, x 0.95 per batch) and a small action std (0.1): the warm start keeps the grasp the
+# expert made at the hand-over, the curriculum walks the start back to the true reset.
+DEMO = {"demo_episodes": 4, "demo_noise": 0.1, "bc_warmstart": 30, "critic_warmup": 3, "bc_coef": 0.5,
+        "bc_decay": 0.95, "init_log_std": -2.3, "obs_norm_steps": 0}
+# guarded: the warm start kept through PPO's first updates, the guards the finetune preset measured on
+# distilled students: the value loss stays out of the shared trunk (critic_detach) with its own lr 1e-3, the
+# actor's lr 1e-4 (not 3e-4) with SB3's KL early stop at 0.02; a stronger, slower-decaying BC term (1.0, x 0.99
+# per batch) on twice the demonstrations (8 per object), cloned for 50 epochs, and 5 critic-only batches.
+WIDE = {"head": "256,256", "state_hidden": 256}
+GUARDED = {**DEMO, "demo_episodes": 8, "bc_warmstart": 50, "critic_warmup": 5, "bc_coef": 1.0, "bc_decay": 0.99,
+           "critic_detach": True, "critic_lr": 1e-3, "lr": 1e-4, "target_kl": 0.02}
+RECIPES = {
+    "ppo": {},
+    "bc": dict(DEMO),  # the same warm start and BC term, every episode from the true reset
+    "reverse_bc": {**DEMO, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
+    "uniform_bc": {**DEMO, "curriculum": "uniform", "curriculum_horizon": 130},
+    "bc_guarded": dict(GUARDED),
+    # dagger: the guarded recipe from a better-cloned policy: after the BC warm start, 3 DAgger rounds in which
+    # the cloned policy drives 4 episodes per object and the expert labels what it visits (their steps count
+    # as demonstration frames, not online frames)
+    "reverse_dagger": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "curriculum": "reverse",
+                       "curriculum_demos": 11, "curriculum_step": 5},
+    "reverse_guarded": {**GUARDED, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
+    # wide: the dagger recipes on a 256-unit state MLP and 256x256 heads (DexArt's actor is 64 / 64x64): the
+    # clone it starts from opens 0.55 / 0.56 of the laptops instead of 0.05 / 0.08
+    # (benchmarks/results/rl/curriculum/clone_capacity_laptop_state.json)
+    "dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE},
+    "reverse_dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "curriculum": "reverse",
+                            "curriculum_demos": 11, "curriculum_step": 5},
+    # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of
+    # their own, half of every batch; 2 LayerNorm critics; 1 update per frame after 5,000 frames; a 256-unit
+    # state trunk and one 256-unit hidden layer in each network)
+    # point clouds: PPO from the task's distilled DAgger student (the `student` step: `distill` with the
+    # settings of the student in the README's headline table, STUDENTS) with the guards above; nothing is
+    # cloned again: the guide's 4 noisy episodes per object and 3 rounds of 4 episodes per object that the
+    # student drives (labelled by the guide) are the BC term's data
+    "student_guarded": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "bc_warmstart": 0, "student": True},
+    # anchored: the `finetune` preset of rl/ppo.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out
+    # of the trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop
+    # students on both splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
+    "student_anchored": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
+                         "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True},
+    "sac_demos": {"algo": "sac"},
+    "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
+}
+# the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
+STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
+            "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
+# per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
+# steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
+# the planned update the KL stop let through, the BC term's weight
+CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean",
+              "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
+              "update_steps_frac", "bc_weight", "kl_init", "wall_s")
+
+
+def student_config(task: str, seed: int, args) -> DistillConfig:
+    """The distillation of the ``student`` step: the headline student's settings, this seed."""
+    overrides = json.loads((RESULTS.parents[1] / "students" / STUDENTS[task]).read_text())["overrides"]
+    overrides.update(task=task, seed=seed, eval_episodes=args.eval_episodes, progress=False,
+                     threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_cloud_student_s{seed}"))
+    if fast_mode():  # as bench_distill's smoke run
+        overrides.update(num_points=64, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
+                         episodes_per_round=1, epochs=1, epochs_per_round=1, eval_episodes=1,
+                         objects=list_objects(task, "seen")[0].name)
+    return DistillConfig(**overrides)
+
+
+def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> ppo.PPOConfig | sac.SACConfig:
+    overrides = dict(RECIPES[recipe], task=task, obs=obs, seed=seed, frames=frames,
+                     eval_episodes=args.eval_episodes, max_minutes=args.max_minutes, progress=False,
+                     threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_{obs}_{recipe}_s{seed}"))
+    if overrides.pop("student", False):
+        if obs != "cloud":
+            raise ValueError(f"recipe {recipe} starts from a point-cloud student: needs --obs cloud")
+        overrides["init_from"] = str(Path(student_config(task, seed, args).out) / CHECKPOINT)
+    if overrides.pop("algo", "ppo") == "sac":
+        if fast_mode():
+            overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
+                             max_episode_steps=30, eval_episodes=1, num_points=64, curriculum_demos=2, buffer=1000)
+        return sac.SACConfig(**overrides)
+    overrides["workers"] = 1
+    if fast_mode():  # a smoke run of the script itself, not evidence
+        overrides.update(frames_per_batch=200, minibatch=100, epochs=1, num_points=64, max_episode_steps=30,
+                         eval_episodes=1, frames=400, demo_episodes=min(overrides.get("demo_episodes", 0), 1),
+                         bc_warmstart=min(overrides.get("bc_warmstart", 0), 2), curriculum_demos=2,
+                         dagger_rounds=min(overrides.get("dagger_rounds", 0), 1))
+    return ppo.preset("fast", **overrides)
+
+
+def no_nan(value):
+    """JSON has no NaN: a statistic of no episode (NaN in the log) is written as null."""
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
+def training_seconds(history: list[dict]) -> float:
+    """Training wall time over every invocation of a run: ``wall_s`` restarts at each ``--resume``."""
+    ends = [a["wall_s"] for a, b in zip(history, history[1:]) if b["wall_s"] < a["wall_s"]]
+    return sum(ends) + (history[-1]["wall_s"] if history else 0.0)
+
+
+def run_seed(job: tuple) -> dict:
+    """Distil the student first (``student`` recipes, once), then train (or resume) one seed; its row of
+    ``per_seed``."""
+    cfg, student = job
+    # a finished distillation ends with its report (its checkpoint is rewritten after every round before that)
+    if student is not None and not (Path(student.out) / "report.md").exists():
+        distill(student)
+    resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
+    learner = sac if isinstance(cfg, sac.SACConfig) else ppo
+    result = learner.train(dataclasses.replace(cfg, resume=resume))
+    return {"seed": cfg.seed, "frames": result["frames"],
+            "seen_success": result["eval"]["seen"]["success_rate"],
+            "unseen_success": result["eval"]["unseen"]["success_rate"],
+            "seen_mean_max_stage": result["eval"]["seen"]["mean_max_stage"],
+            "unseen_mean_max_stage": result["eval"]["unseen"]["mean_max_stage"],
+            "wall_time_s": round(training_seconds(result["history"]), 1),
+            "wall_time_with_eval_s": round(result["wall_time_s"], 1), "resumed": resume,
+            "demo_frames": (result["demos"] or {}).get("frames", 0),
+            "guide_success": (result["demos"] or {}).get("guide_success"),
+            "dagger_success": (result["demos"] or {}).get("dagger_success"),
+            # the cloned policy before any PPO update (a resumed run reads it from its checkpoint)
+            "warmstart_success": (result["demos"] or {}).get("warmstart_eval"),
+            "curve": curve(result["history"])}
+
+
+def curve(history: list[dict]) -> list[dict]:
+    return [{k: no_nan(row.get(k)) for k in CURVE_KEYS} for row in history]
+
+
+def refresh_curves(path: Path, runs: Path, note: str | None = None) -> dict:
+    """Rewrite the ``curve`` of every seed of a written JSON from its run's checkpoint (``CURVE_KEYS`` as they are
+    now), and its ``note`` if one is given; nothing is trained or evaluated again."""
+    from dexart_lite.rl.checkpoint import load_checkpoint
+
+    summary = json.loads(path.read_text())
+    if note:
+        summary["note"] = note
+    for row in summary["per_seed"]:
+        run = runs / f"{summary['task']}_{summary['obs']}_{summary['recipe']}_s{row['seed']}"
+        history = load_checkpoint(run / ppo.CHECKPOINT)["history"]
+        if history[-1]["frames"] != row["frames"]:
+            raise ValueError(f"{run} holds {history[-1]['frames']} frames, the JSON {row['frames']}")
+        row["curve"] = curve(history)
+    write_json(path, summary)
+    return summary
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    parser.add_argument("--obs", default="state", choices=["state", "cloud"])
+    parser.add_argument("--recipe", default="reverse_bc", choices=list(RECIPES))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--frames", type=int, default=1_000_000, help="online frames per seed (at most)")
+    parser.add_argument("--max-minutes", type=float, default=None, help="stop each seed's training after this")
+    parser.add_argument("--jobs", type=int, default=1, help="seeds trained at once")
+    parser.add_argument("--eval-episodes", type=int, default=3, help="per seen and unseen object")
+    parser.add_argument("--runs", default="runs/curriculum")
+    parser.add_argument("--results", type=Path, default=RESULTS)
+    parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
+    parser.add_argument("--refresh-curves", action="store_true",
+                        help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
+    args = parser.parse_args(argv)
+    if args.refresh_curves:
+        return refresh_curves(args.results / f"{args.task}_{args.obs}_{args.recipe}.json", Path(args.runs), args.note)
+    if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
+        raise ValueError("fast mode writes smoke results: pass --results elsewhere")
+    path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
+    cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
+    students = [student_config(args.task, s, args) if RECIPES[args.recipe].get("student") else None
+                for s in args.seeds]
+    summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
+               **({"student": dataclasses.asdict(students[0]) | {"seed": None, "out": None}} if students[0] else {}),
+               "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
+               "per_seed": [], **provenance(__file__, argv),
+               "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
+               "jobs": args.jobs, **({"note": args.note} if args.note else {})}
+    with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        jobs = list(zip(cfgs, students))
+        for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):
+            summary["per_seed"].append(row)
+            for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
+                summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
+            write_json(path, summary)
+            print(f"seed {row['seed']}: {row['frames']} frames, seen {row['seen_success']:.2f}, "
+                  f"unseen {row['unseen_success']:.2f} -> {path}")
+    return summary
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,160 @@
+"""The tables of RL from the experts, generated from the committed JSON (never typed by hand).
+
+    python benchmarks/rl/curriculum_table.py            # print the tables
+    python benchmarks/rl/curriculum_table.py --write    # refresh them in docs/results/rl_from_experts.md and README.md
+
+Four tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
+
+* ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/rl/curriculum/*.json`` run
+  set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success
+  from the true reset (mean ± std over the seeds, then each seed), training wall time per seed.
+* ``clone-capacity`` (docs/results/rl_from_experts.md): the DAgger clone of each network size from
+  ``benchmarks/results/rl/curriculum/clone_capacity_*.json`` (``benchmarks/rl/clone_capacity.py``).
+* ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, each cell from its JSON
+  (``HEADLINE``), with DexArt's Table 2 (no pretraining) beside them.
+* ``zoo`` (README.md): the policies shipped in ``dexart_lite/zoo/`` and the success each reproduces (its manifest,
+  written by ``benchmarks/students/zoo_build.py`` together with ``benchmarks/results/students/zoo.json``).
+
+``tests/test_docs_tables.py`` fails when a table in a file differs from what this script generates.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = ROOT / "benchmarks" / "results"
+DOC = ROOT / "docs" / "results" / "rl_from_experts.md"
+README = ROOT / "README.md"
+PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (0.81, 0.41), "toilet": (0.71, 0.46)}
+# the evidence of each headline cell: expert (solve JSONs, seen and unseen), the best committed point-cloud student,
+# and the best committed RL run set on point clouds (None: none yet)
+# and the best committed RL run set on the state observation (the diagnostic: object pose given, no perception)
+HEADLINE = {
+    "faucet": {"student": "distill_faucet_episodes2x.json", "rl": None, "rl_state": "faucet_state_dagger_wide.json"},
+    "bucket": {"student": "distill_bucket.json", "rl": None, "rl_state": None},
+    "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": "laptop_cloud_student_guarded.json",
+               "rl_state": "laptop_state_dagger_wide.json"},
+    "toilet": {"student": "distill_toilet_episodes2x.json", "rl": None, "rl_state": None},
+}
+
+
+def load(path: Path) -> dict:
+    return json.loads(path.read_text())
+
+
+def spread(values: list[float]) -> str:
+    return f"{np.mean(values):.2f} ± {np.std(values):.2f}" if len(values) > 1 else f"{values[0]:.2f}"
+
+
+def runs_table() -> str:
+    rows = ["| task | obs | recipe | seeds | online frames / seed | demo frames / seed | seen success | "
+            "unseen success | training time / seed | JSON |", "|" + "---|" * 10]
+    for path in sorted((RESULTS / "rl" / "curriculum").glob("*.json")):
+        result = load(path)
+        if "per_seed" not in result or not result["per_seed"]:
+            continue
+        seeds = result["per_seed"]
+        seen, unseen = [r["seen_success"] for r in seeds], [r["unseen_success"] for r in seeds]
+        frames = " / ".join(f"{r['frames'] / 1000:.0f}k" for r in seeds)
+        demo = " / ".join(f"{r['demo_frames'] / 1000:.1f}k" for r in seeds)
+        each = {name: " / ".join(f"{v:.2f}" for v in values) for name, values in (("seen", seen), ("unseen", unseen))}
+        minutes = " / ".join(f"{r['wall_time_s'] / 60:.0f} min" for r in seeds)
+        rows.append(f"| {result['task']} | {result['obs']} | `{result['recipe']}` | {len(seeds)} | {frames} | {demo} "
+                    f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) | {minutes} "
+                    f"| [{path.name}](../../benchmarks/results/rl/curriculum/{path.name}) |")
+    return "\n".join(rows)
+
+
+def clone_table() -> str:
+    """Per task and network: the DAgger clone's success from the true reset (benchmarks/rl/clone_capacity.py)."""
+    rows = ["| task | obs | network (state MLP / heads) | seeds | samples / seed | clone's success in its DAgger rounds "
+            "| seen success | unseen success | JSON |", "|" + "---|" * 9]
+    for path in sorted((RESULTS / "rl" / "curriculum").glob("clone_capacity_*.json")):
+        result = load(path)
+        for arch in result["summary"]:
+            runs = [r for r in result["per_run"] if r["arch"] == arch]
+            seen, unseen = [r["seen_success"] for r in runs], [r["unseen_success"] for r in runs]
+            rounds = " / ".join(", ".join(f"{v:.2f}" for v in r["dagger_success"]) for r in runs)
+            samples = " / ".join(f"{r['samples'] / 1000:.0f}k" for r in runs)
+            each = {name: " / ".join(f"{v:.2f}" for v in values) for name, values in (("seen", seen), ("unseen", unseen))}
+            network = f"`{arch}` ({runs[0]['state_hidden']} / {runs[0]['head'].replace(',', 'x')})"
+            rows.append(f"| {result['task']} | {result['obs']} | {network} | {len(runs)} | {samples} | {rounds} "
+                        f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) "
+                        f"| [{path.name}](../../benchmarks/results/rl/curriculum/{path.name}) |")
+    return "\n".join(rows)
+
+
+def rl_cell(name: str | None) -> str:
+    """Seen / unseen success of a committed RL run set, linked to its JSON, with its frames per seed."""
+    if not name:
+        return "not yet ([why](docs/results/rl_from_experts.md))"
+    rl = load(RESULTS / "rl" / "curriculum" / name)
+    return (f"[{rl['seen_success']:.2f} / {rl['unseen_success']:.2f}](benchmarks/results/rl/curriculum/{name}) "
+            f"(`{rl['recipe']}`, {rl['frames'] / 1000:.0f}k frames, {len(rl['per_seed'])} seeds)")
+
+
+def headline_table() -> str:
+    rows = ["| task | scripted expert (privileged) | distilled point-cloud student | RL on point clouds | "
+            "RL on the state (diagnostic) | DexArt Table 2 (RL, no pretraining) |", "|---|---|---|---|---|---|"]
+    for task, cells in HEADLINE.items():
+        expert = [load(RESULTS / "experts" / f"solve_{task}_{split}.json")["success_rate"] for split in ("seen", "unseen")]
+        student = load(RESULTS / "students" / cells["student"])
+        rows.append(f"| {task} | [{expert[0]:.2f} / {expert[1]:.2f}](benchmarks/results/experts/solve_{task}_seen.json) "
+                    f"| [{student['seen_success']:.2f} / {student['unseen_success']:.2f}](benchmarks/results/students/{cells['student']}) "
+                    f"| {rl_cell(cells['rl'])} | {rl_cell(cells['rl_state'])} "
+                    f"| {PAPER_NO_PRETRAIN[task][0]:.2f} / {PAPER_NO_PRETRAIN[task][1]:.2f} |")
+    return "\n".join(rows)
+
+
+def zoo_table() -> str:
+    """The shipped policies (dexart_lite/zoo/manifest.json, written by benchmarks/students/zoo_build.py with zoo.json)."""
+    path = ROOT / "dexart_lite" / "zoo" / "manifest.json"
+    manifest = load(path)["policies"] if path.exists() else {}
+    rows = ["| `--ckpt` | trained by | frames (its training data) | seed | seen / unseen success (3 eps per object, env seed 100) |",
+            "|---|---|---|---|---|"]
+    for task, e in manifest.items():
+        rows.append(f"| `zoo:{task}` | {e['trainer']} (`{e['training_command']}`) | {e['frames'] / 1000:.0f}k | {e['seed']} "
+                    f"| [{e['seen_success']:.2f} / {e['unseen_success']:.2f}](benchmarks/results/students/zoo.json) |")
+    return "\n".join(rows)
+
+
+TABLES = {"curriculum-runs": (DOC, runs_table), "clone-capacity": (DOC, clone_table),
+          "rl-headline": (README, headline_table), "zoo": (README, zoo_table)}
+
+
+def block(text: str, name: str) -> re.Match | None:
+    return re.search(rf"<!-- {name} -->\n(.*?)<!-- /{name} -->", text, flags=re.S)
+
+
+def stale_tables() -> list[str]:
+    """Names of the tables whose text in their file differs from the generated one (or is missing)."""
+    stale = []
+    for name, (path, make) in TABLES.items():
+        found = block(path.read_text(), name) if path.exists() else None
+        if found is None or found.group(1) != make() + "\n":
+            stale.append(name)
+    return stale
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="replace the tables in their files")
+    args = parser.parse_args(argv)
+    tables = {name: (path, make()) for name, (path, make) in TABLES.items()}
+    for name, (path, table) in tables.items():
+        print(f"{name} ({path}):\n{table}\n")
+        if args.write and block(path.read_text(), name) is None:  # checked for every file before any is written
+            raise ValueError(f"{path} has no <!-- {name} --> ... <!-- /{name} --> block to fill")
+    for name, (path, table) in tables.items() if args.write else ():
+        text = path.read_text()
+        path.write_text(text.replace(block(text, name).group(0), f"<!-- {name} -->\n{table}\n<!-- /{name} -->"))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""Which unseen objects do students fail on? Success per object template, from finished runs.
+
+    python benchmarks/students/success_by_template.py --runs runs/distill_toilet_dagger_episodes2x_s0 \
+        runs/distill_toilet_dagger_episodes2x_s1 runs/distill_toilet_dagger_episodes2x_s2 \
+        --json benchmarks/results/students/success_by_template_toilet.json
+
+Every category's seen objects come from templates A and B; half of its unseen objects come from the
+held-out template C (a shape family no training object has, e.g. tankless square toilets), the
+others from A / B with one parameter in a held-out band (``urdf/objects/README.md``). A student's
+unseen success mixes the two kinds of novelty; this script separates them. It reads each run's
+``eval_seen.json`` / ``eval_unseen.json`` (``dexart-lite distill`` or ``bench_distill.py`` folders,
+or a PPO run's) and the object catalog, and writes per split and template: the success of each run
+(mean over that template's objects, each object weighted by its episodes), their mean and std, the
+objects and the episodes; and per object the success of each run. No simulation: it takes seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from dexart_lite import objects as objects_lib
+from dexart_lite.utils import provenance, write_json
+
+SPLITS = ("seen", "unseen")
+
+
+def read_run(run: Path) -> dict[str, dict]:
+    """``{split: eval json}`` of a finished run folder; a one-line error if one is missing."""
+    evals = {}
+    for split in SPLITS:
+        path = run / f"eval_{split}.json"
+        if not path.is_file():
+            raise FileNotFoundError(f"{run} has no eval_{split}.json: not a finished distill or train run")
+        evals[split] = json.loads(path.read_text())
+    return evals
+
+
+def by_template(runs: list[Path]) -> dict:
+    """The per-template and per-object success of ``runs`` (see the module docstring)."""
+    evals = [read_run(run) for run in runs]
+    tasks = {e["seen"]["task"] for e in evals}
+    if len(tasks) != 1:
+        raise ValueError(f"the runs are of different tasks: {sorted(tasks)}")
+    task = tasks.pop()
+    templates = {info.name: info.template for split in SPLITS for info in objects_lib.list_objects(task, split)}
+    rows, per_object = [], {}
+    for split in SPLITS:
+        groups: dict[str, list[str]] = defaultdict(list)
+        for name in evals[0][split]["objects"]:
+            groups[templates[name]].append(name)
+        for template, names in sorted(groups.items()):
+            per_run, episodes = [], 0
+            for e in evals:
+                objs = e[split]["objects"]
+                n = sum(objs[name]["episodes"] for name in names)
+                per_run.append(sum(objs[name]["success_rate"] * objs[name]["episodes"] for name in names) / n)
+                episodes += n
+            rows.append({"split": split, "template": template, "objects": len(names), "episodes": episodes,
+                         "success": float(np.mean(per_run)), "success_std": float(np.std(per_run)),
+                         "per_run": per_run})
+        for name in evals[0][split]["objects"]:
+            per_object[name] = {"split": split, "template": templates[name],
+                                "per_run": [e[split]["objects"][name]["success_rate"] for e in evals]}
+    return {"task": task, "runs": [str(run) for run in runs], "rows": rows, "per_object": per_object}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=Path, nargs="+", required=True, help="finished run folders (one per seed)")
+    parser.add_argument("--json", type=Path, help="where to write the result (default: print only)")
+    args = parser.parse_args(argv)
+    result = by_template(args.runs)
+    print(f"| {result['task']} | template | objects | episodes | success (mean ± std over {len(args.runs)} runs) |")
+    print("|---|---|---|---|---|")
+    for row in result["rows"]:
+        print(f"| {row['split']} | {row['template']} | {row['objects']} | {row['episodes']} | "
+              f"{row['success']:.2f} ± {row['success_std']:.2f} ({' / '.join(f'{v:.2f}' for v in row['per_run'])}) |")
+    if args.json:
+        write_json(args.json, {**result, **provenance(__file__, argv)})
+        print(f"wrote {args.json}")
+    return result
+
+
+if __name__ == "__main__":
+    main()

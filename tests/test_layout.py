@@ -111,3 +111,25 @@ def test_the_sealing_check_finds_a_breach(tmp_path):
     (tmp_path / "benchmarks" / "probe.py").write_text("s = env.unwrapped._state\nq = env._t\n")
     assert [b.split(":")[0] + ":" + b.split(":")[1] for b in sealing_breaches(tmp_path)] == [
         "dexart_lite/robot.py:1", "benchmarks/probe.py:1", "benchmarks/probe.py:2"]
+
+
+def test_benchmarks_live_in_theme_folders_and_record_their_provenance():
+    """Every benchmark script sits in ``benchmarks/<theme>/`` beside a ``benchmarks/results/<theme>/`` folder,
+    finds it through ``utils.benchmark_results`` (no hand-built results path) and names itself in its JSON
+    through ``utils.provenance`` (no hand-typed script path that a move would leave stale)."""
+    from dexart_lite.utils import benchmark_results, provenance
+
+    bench = PACKAGE.parent / "benchmarks"
+    assert sorted(p.name for p in bench.glob("*.py")) == []  # no script outside a theme
+    scripts = sorted(bench.glob("*/*.py"))
+    themes = {p.parent.name for p in scripts}
+    assert themes == {"perf", "experts", "students", "rl", "pretraining"}
+    assert all((bench / "results" / theme).is_dir() for theme in themes)
+    for path in scripts:
+        text = path.read_text()
+        assert 'Path(__file__).parent / "results"' not in text and 'command_line("benchmarks/' not in text, path.name
+    script = bench / "perf" / "bench_sim.py"
+    assert benchmark_results(str(script)) == bench / "results" / "perf"
+    record = provenance(str(script), ["--task", "laptop"])
+    assert record["command"] == "python benchmarks/perf/bench_sim.py --task laptop"
+    assert set(record) == {"command", "machine", "fast_mode"} and record["machine"]["cores"] >= 1

@@ -14,14 +14,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import os
-import platform
 import subprocess
-import sys
 import time
 from pathlib import Path
 
-from dexart_lite.utils import git_worktree, run_in_checkout
+from dexart_lite.utils import git_worktree, provenance, run_in_checkout
 
 ROOT = Path(__file__).resolve().parents[2]
 TASKS = ("faucet", "bucket", "laptop", "toilet")
@@ -73,9 +70,7 @@ def main(argv=None) -> dict:
               "this_commit": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                                             capture_output=True, text=True).stdout.strip(),
               "wall_time_s": time.time() - start,
-              "command": "python benchmarks/perf/bench_reset.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-              "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-                         f"Python {platform.python_version()}"}
+              **provenance(__file__, argv)}
     if args.json:
         args.json.write_text(json.dumps(report, indent=2) + "\n")
     return report

@@ -26,7 +26,7 @@ from dexart_lite.objects import CATEGORIES, list_objects
 from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.registration import TASKS
-from dexart_lite.utils import fast_mode, machine_info, write_json
+from dexart_lite.utils import fast_mode, provenance, write_json
 
 
 def dam_cost(task: str, objects: int, clouds: int, root: Path) -> float:
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
         args.tasks, args.objects, args.clouds, args.train_clouds = "laptop", 1, 5, 32
     torch.set_num_threads(args.threads)
     tasks = [t.strip() for t in args.tasks.split(",") if t.strip()]
-    results = {"machine": machine_info(), "torch": torch.__version__, "dexart_lite": dexart_lite.__version__,
+    results = {**provenance(__file__, argv), "torch": torch.__version__, "dexart_lite": dexart_lite.__version__,
                "threads": args.threads, "dam": {}, "methods": {}}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)

@@ -30,7 +30,7 @@ from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.pretrain.figures import plot_segmentation
 from dexart_lite.registration import TASKS
-from dexart_lite.utils import machine_info
+from dexart_lite.utils import benchmark_results, provenance
 
 CLASS_WEIGHTS = {"bucket": "3,1,1,1"}  # DexArt's segmentation weights (functional part up-weighted)
 FIGURE_CLOUDS = 2  # per split in the true-vs-predicted pictures
@@ -90,7 +90,7 @@ def run_seg(args) -> int:
         _, head = pretrain.load_head(out / "head.pt")
         segmentation_figure(encoder, head, data_root, args.results / f"seg_{task}.png", task)
         args.results.mkdir(parents=True, exist_ok=True)
-        results.write_text(json.dumps({"machine": machine_info(), "samples_per_object": args.samples_per_object,
+        results.write_text(json.dumps({**args.provenance, "samples_per_object": args.samples_per_object,
                                        "tasks": rows}, indent=2) + "\n")
         print(f"{task}: mIoU seen {rows[task]['miou_seen']:.3f}, unseen {rows[task]['miou_unseen']:.3f}", flush=True)
     lines = ["| task | mIoU seen (val) | mIoU unseen (test) | IoU functional part seen / unseen | train clouds | "
@@ -116,7 +116,7 @@ def run_ppo(args) -> int:
         raise FileNotFoundError(f"{encoder} missing: run the `seg` step for {args.task} first")
     arms = {"scratch": None, "pretrained": str(encoder)}
     summary = {"task": args.task, "frames": args.frames, "seeds": args.seeds, "preset": args.preset,
-               "eval_episodes_per_object": args.eval_episodes, "machine": machine_info(), "arms": {}}
+               "eval_episodes_per_object": args.eval_episodes, **args.provenance, "arms": {}}
     for arm, pretrained in arms.items():
         summary["arms"][arm] = {"runs": []}
         for seed in args.seeds:
@@ -223,7 +223,7 @@ def run_methods(args) -> int:
         key = pretrain.MAIN_METRIC[method]
         print(f"{name}: val {key} {metrics['val'].get(key)}, test {metrics.get('test', {}).get(key)}", flush=True)
     args.results.mkdir(parents=True, exist_ok=True)
-    (args.results / "methods.json").write_text(json.dumps({"machine": machine_info(), "runs": results}, indent=2) + "\n")
+    (args.results / "methods.json").write_text(json.dumps({**args.provenance, "runs": results}, indent=2) + "\n")
     return 0
 
 
@@ -242,7 +242,7 @@ def untrained_knn(data_root: Path, seed: int) -> float:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, default=Path("runs/pretrain"), help="datasets and runs")
-    parser.add_argument("--results", type=Path, default=Path("benchmarks/results/pretraining"))
+    parser.add_argument("--results", type=Path, default=benchmark_results(__file__))
     sub = parser.add_subparsers(dest="step", required=True)
     seg = sub.add_parser("seg", help="DAM data + segmentation pretraining + mIoU per task")
     seg.add_argument("--tasks", default=",".join(TASKS))
@@ -265,6 +265,7 @@ def main(argv=None) -> int:
     methods.add_argument("--object-samples", type=int, default=datasets.DEFAULT_OBJECT_SAMPLES)
     methods.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
+    args.provenance = provenance(__file__, argv)  # recorded in every JSON a step writes
     return {"seg": run_seg, "ppo": run_ppo, "after-ppo": run_after_ppo, "methods": run_methods}[args.step](args)
 
 

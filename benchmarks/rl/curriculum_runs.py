@@ -165,7 +165,17 @@ def run_seed(job: tuple) -> dict:
             "dagger_success": (result["demos"] or {}).get("dagger_success"),
             # the cloned policy before any PPO update (a resumed run reads it from its checkpoint)
             "warmstart_success": (result["demos"] or {}).get("warmstart_eval"),
+            "student_success": student_success(student),
             "curve": curve(result["history"])}
+
+
+def student_success(student: DistillConfig | None) -> dict | None:
+    """The distilled student's own evaluation (``distill`` writes it: same episodes per object and env seed as the
+    PPO run's), the success RL starts from; None without a student."""
+    if student is None:
+        return None
+    return {split: json.loads((Path(student.out) / f"eval_{split}.json").read_text())["success_rate"]
+            for split in ("seen", "unseen")}
 
 
 def curve(history: list[dict]) -> list[dict]:

@@ -36,11 +36,16 @@ USER_ERRORS = (ValueError, FileNotFoundError, KeyError, RuntimeError, OSError)
 
 
 def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, given_only: bool = False,
-                         default_label: str = "default") -> None:
+                         default_label: str = "default", overrides: bool = True) -> None:
     """One ``--flag-name`` per field of the dataclass ``config_cls`` (or of its fields in ``names``), typed from
     its annotation (``int | None`` -> int), with the field's ``metadata["help"]`` and "(default_label: value)";
     booleans get ``--flag`` / ``--no-flag``. ``given_only``: every flag defaults to None, so that the caller can
-    tell the flags given from the rest (a preset, or another config's defaults, then fills those in)."""
+    tell the flags given from the rest (a preset, or another config's defaults, then fills those in).
+    ``overrides``: also ``--set FIELD=VALUE ...``, the spelling the benchmark scripts and ``study`` take (a
+    benchmark's ``--set`` can be pasted into a command), applied after the flags by ``config_from_args``."""
+    if overrides:
+        parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
+                            help=f"more {config_cls.__name__} fields, typed like their defaults (after the flags)")
     hints = typing.get_type_hints(config_cls)
     for f in dataclasses.fields(config_cls):
         if names is not None and f.name not in names:
@@ -55,9 +60,21 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
             parser.add_argument(flag, type=kinds[0], default=default, help=help_text)
 
 
-def config_from_args(config_cls, args: argparse.Namespace):
-    """The ``config_cls`` instance of the flags that ``add_config_arguments`` added."""
-    return config_cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(config_cls)})
+def given_fields(config_cls, args: argparse.Namespace) -> dict:
+    """The fields of ``config_cls`` that the command line sets: every flag not None, then ``--set`` pairs."""
+    from dexart_lite.utils import parse_overrides
+
+    fields = {f.name: getattr(args, f.name) for f in dataclasses.fields(config_cls)
+              if getattr(args, f.name, None) is not None}
+    return {**fields, **parse_overrides(getattr(args, "overrides", None) or [], config_cls)}
+
+
+def config_from_args(config_cls, args: argparse.Namespace, preset=None):
+    """The ``config_cls`` instance of the flags that ``add_config_arguments`` added and ``--set``; with ``preset``
+    (a function of the given fields, e.g. a named preset), the fields not given come from it, else from the
+    dataclass defaults."""
+    given = given_fields(config_cls, args)
+    return preset(**given) if preset is not None else config_cls(**given)
 
 
 def _top_parser() -> argparse.ArgumentParser:

@@ -151,6 +151,27 @@ def test_command_line_options_override_the_preset():
     assert cfg.frames_per_batch == ppo.PRESETS["cpu"]["frames_per_batch"] and cfg.epochs == ppo.PRESETS["cpu"]["epochs"]
 
 
+def test_every_config_command_takes_set_after_its_flags():
+    """``--set FIELD=VALUE`` (the benchmarks' and study's spelling) on the commands built from a config: typed
+    like the field, applied after the preset and the flags, and an unknown field is refused by name."""
+    from dexart_lite.imitation.distill import DistillConfig
+    from dexart_lite.rl import sac, train
+
+    parser = cli.argparse.ArgumentParser()
+    train.add_arguments(parser)
+    args = parser.parse_args(["--preset", "cpu", "--epochs", "3", "--set", "epochs=7", "anchor_coef=0.5"])
+    cfg = ppo.config_from_args(args)
+    assert (cfg.epochs, cfg.anchor_coef, cfg.frames_per_batch) == (7, 0.5, ppo.PRESETS["cpu"]["frames_per_batch"])
+    args = parser.parse_args(["--algo", "sac", "--set", "demo_fraction=0.25"])
+    assert sac.config_from_args(args).demo_fraction == 0.25
+    parser = cli.argparse.ArgumentParser()
+    cli.add_config_arguments(parser, DistillConfig)
+    cfg = cli.config_from_args(DistillConfig, parser.parse_args(["--rounds", "2", "--set", "rounds=5", "normalize=false"]))
+    assert (cfg.rounds, cfg.normalize) == (5, False)
+    with pytest.raises(ValueError, match="DistillConfig field.*'roundz'"):
+        cli.config_from_args(DistillConfig, parser.parse_args(["--set", "roundz=5"]))
+
+
 @pytest.mark.parametrize("overrides, message", [
     ({"encoder": "huge"}, "valid choices: small, medium, large"),
     ({"backend": "mpi"}, "valid choices: process, distributed, ray"),

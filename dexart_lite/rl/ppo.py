@@ -30,7 +30,7 @@ import dataclasses
 import importlib.util
 import math
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
 
@@ -891,6 +891,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> PPOConfig:
-    """The preset named by ``--preset`` with every option given on the command line applied."""
-    overrides = {f.name: getattr(args, f.name) for f in fields(PPOConfig) if getattr(args, f.name) is not None}
-    return preset(args.preset, **overrides)
+    """The preset named by ``--preset`` with every option given on the command line (flags, ``--set``) applied."""
+    from dexart_lite.cli import config_from_args as from_args
+
+    return from_args(PPOConfig, args, lambda **given: preset(args.preset, **given))

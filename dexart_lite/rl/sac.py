@@ -400,10 +400,10 @@ def train(cfg: SACConfig) -> dict:
 
 # ---------------------------------------------------------------- command line (through rl/train.py)
 def config_from_args(args: argparse.Namespace) -> SACConfig:
-    """SACConfig with every option given on the command line (None: not given) applied."""
-    overrides = {f.name: getattr(args, f.name) for f in fields(SACConfig)
-                 if getattr(args, f.name, None) is not None}
-    return SACConfig(**overrides)
+    """SACConfig with every option given on the command line (flags not None, ``--set``) applied."""
+    from dexart_lite.cli import config_from_args as from_args
+
+    return from_args(SACConfig, args)
 
 
 __all__ = ["SACConfig", "mixed_batch", "store", "train", "transition_keys", "validate"]

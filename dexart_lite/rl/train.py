@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "SAC with demonstrations in the replay buffer, rl/sac.py; its own defaults)")
     ppo.add_arguments(parser)  # every PPOConfig field and --preset; defaults None (the preset's / SACConfig's apply)
     add_config_arguments(parser.add_argument_group("sac only"), sac.SACConfig, names=SAC_ONLY, given_only=True,
-                         default_label="sac default")
+                         default_label="sac default", overrides=False)  # --set: ppo.add_arguments added it
 
 
 def given(args: argparse.Namespace, names: list[str]) -> list[str]:

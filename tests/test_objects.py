@@ -425,3 +425,17 @@ def test_the_objects_readme_is_its_template_filled_from_the_committed_objects():
 
     root = paths.objects_dir()
     assert readme.readme_text(root) == (root / "README.md").read_text()
+
+
+def test_object_pictures_load_the_object_as_the_env_does_and_show_its_joint(tmp_path):
+    """``objects show``: the object loaded by the env's ArticulatedObjects, seen by a DepthCamera: it fills part of
+    the frame, and the lid's pose changes the picture (the joint is set, not ignored)."""
+    from dexart_lite.objects import pictures
+
+    info = cat.list_objects("laptop", "seen")[0]
+    closed, opened = pictures.render(info, info.joint_lower, 64), pictures.render(info, info.joint_target, 64)
+    assert closed.shape == (64, 64, 3) and closed.dtype == np.uint8
+    assert 0.02 < (closed != closed[0, 0]).any(axis=2).mean() < 0.9  # the object, on a background
+    assert (closed != opened).any(axis=2).mean() > 0.02
+    assert cli.main(["objects", "show", info.name, "--out", str(tmp_path / "show.png")]) == 0
+    assert (tmp_path / "show.png").stat().st_size > 1000

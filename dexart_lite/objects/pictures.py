@@ -1,7 +1,8 @@
 """Pictures of the objects: ``objects show`` (one object at a few joint angles) and ``objects montage``.
 
-Rendered with PyBullet's TinyRenderer in DIRECT mode (no display needed). The camera looks from the
-robot's side (-x), from +y and from above, like the task cameras, so the functional part is in view.
+Rendered with PyBullet's TinyRenderer in DIRECT mode (no display needed), through the env's own code: the object
+is loaded by ``ArticulatedObjects`` into a ``BulletSim`` and seen by a ``DepthCamera``, as in a task. The camera
+looks from the robot's side (-x), from +y and from above, like the task cameras, so the functional part is in view.
 """
 
 from __future__ import annotations
@@ -11,8 +12,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure  # the object API needs no display backend (unlike pyplot)
 
+from dexart_lite import pointcloud as pc
+from dexart_lite.articulated import PART_LINK, ArticulatedObjects
+from dexart_lite.camera import CameraIntrinsics, CameraPose, DepthCamera
 from dexart_lite.objects import ObjectInfo
-from dexart_lite.sim import BulletClient, pybullet
+from dexart_lite.sim import BASE_LINK, BulletSim
 
 VIEW_DIRECTION = np.array([-0.75, 0.85, 0.65])  # from the object toward the camera (unnormalised)
 CAMERA_DISTANCE = {"faucet": 0.55, "bucket": 0.8, "laptop": 0.75, "toilet": 1.35}  # m, same per category
@@ -22,21 +26,20 @@ MONTAGE_ANGLE = {"faucet": 0.8, "bucket": -0.6, "laptop": 1.2, "toilet": 1.0}
 
 def render(info: ObjectInfo, q: float, size: int = 256) -> np.ndarray:
     """``(size, size, 3)`` uint8 image of ``info`` with its joint at ``q``."""
-    client = BulletClient(connection_mode=pybullet.DIRECT)
+    sim = BulletSim()
     try:
-        uid = client.loadURDF(str(info.urdf_path), useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
-        client.resetJointState(uid, 0, q)
-        lo = np.minimum(client.getAABB(uid, -1)[0], client.getAABB(uid, 0)[0])
-        hi = np.maximum(client.getAABB(uid, -1)[1], client.getAABB(uid, 0)[1])
+        objects = ArticulatedObjects(sim, [info], pc.LabelTable(), check=False)
+        body = objects.activate(info.name, (0.0, 0.0, 0.0), 0.0)
+        objects.set_joint(q)
+        boxes = [sim.aabb(body, link) for link in (BASE_LINK, PART_LINK)]  # the body and the moving part
+        lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
         target = 0.5 * (lo + hi)
         eye = target + CAMERA_DISTANCE[info.category] * VIEW_DIRECTION / np.linalg.norm(VIEW_DIRECTION)
-        view = client.computeViewMatrix(eye.tolist(), target.tolist(), [0, 0, 1])
-        projection = client.computeProjectionMatrixFOV(45.0, 1.0, 0.05, 5.0)
-        _, _, rgba, _, _ = client.getCameraImage(size, size, view, projection, renderer=pybullet.ER_TINY_RENDERER,
-                                                 lightDirection=[-1.0, 1.5, 2.0], shadow=0)
+        camera = DepthCamera(sim, CameraIntrinsics(size, size, fovy_deg=45.0, near=0.05, far=5.0),
+                             CameraPose.look_at(eye, target))
+        return camera.render_rgb(size, size)
     finally:
-        client.disconnect()
-    return np.reshape(np.asarray(rgba, dtype=np.uint8), (size, size, 4))[:, :, :3]
+        sim.close()
 
 
 def show(info: ObjectInfo, out: Path, size: int = 256) -> list[float]:

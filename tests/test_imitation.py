@@ -381,10 +381,14 @@ def test_ppo_anchor_is_the_kl_to_the_student(tiny_run, demos_dir, tmp_path):
         samples["anchor_loc"][:, 3] += 0.1  # one action dimension's mean 0.1 away: KL = 0.1^2 / (2 sigma^2)
         sigma = float(out["scale"][0, 3])
         assert float(ppo.anchor_kl(learner, samples)) == pytest.approx(0.01 / (2 * sigma ** 2), rel=1e-4)
-    rows = ppo_from_student(tiny_run, tmp_path / "anchor", frames=300, critic_warmup=1, anchor_coef=1.0)["history"]
+    rows = ppo_from_student(tiny_run, tmp_path / "anchor", frames=300, critic_warmup=1, anchor_coef=1.0,
+                            anchor_decay=0.5)["history"]
     assert rows[0]["kl_init"] == 0.0 and all(r["kl_init"] > 0 for r in rows[1:])
+    assert [r["anchor_weight"] for r in rows] == [0.0, 1.0, 0.5]  # none in the warm-up, then x anchor_decay
     with pytest.raises(ValueError, match="anchor_coef > 0 needs --init-from"):
         ppo_from_student(tiny_run, tmp_path / "x", init_from=None, anchor_coef=1.0)
+    with pytest.raises(ValueError, match="anchor_decay must be in"):
+        ppo_from_student(tiny_run, tmp_path / "y", anchor_coef=1.0, anchor_decay=0.0)
 
 
 def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, monkeypatch, capsys, load_benchmark):

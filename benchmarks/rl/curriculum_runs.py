@@ -84,6 +84,11 @@ RECIPES = {
     # students on both splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
     "student_anchored": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
                          "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True},
+    # anchored_decay: the same with the anchor let go slowly (x 0.99 per batch: half its weight after ~70 batches,
+    # 280k frames), so that RL may move further from the student once its critic and collection are settled
+    # (defined, not run yet)
+    "student_anchored_decay": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
+                               "anchor_coef": 1.0, "anchor_decay": 0.99, "obs_norm_steps": 0, "student": True},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
@@ -95,7 +100,7 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # the planned update the KL stop let through, the BC term's weight
 CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean",
               "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
-              "update_steps_frac", "bc_weight", "kl_init", "wall_s")
+              "update_steps_frac", "bc_weight", "anchor_weight", "kl_init", "wall_s")
 
 
 def student_config(task: str, seed: int, args) -> DistillConfig:

@@ -142,6 +142,9 @@ class PPOConfig:
                                "RLHF's KL to the reference model); it keeps the fine-tuned policy near the student "
                                "where the noisy policy gradient has no consistent direction. 0: off (DexArt: no "
                                "initial policy)"})
+    anchor_decay: float = field(default=1.0, metadata={"help": "the anchor's weight is multiplied by this after "
+                                "every batch past the critic warm-up (1: a constant anchor, which holds the student "
+                                "but also caps what RL can add; < 1 lets go of it slowly)"})
     obs_norm_steps: int = field(default=0, metadata={"help": "steps of the initial policy whose observations fix "
                                 "the network's input normalisation before training (torchrl's ObservationNorm."
                                 "init_stats: per entry of the state vector, one centre and scale for the cloud); "
@@ -290,6 +293,8 @@ def validate(cfg: PPOConfig) -> None:
             raise ValueError(f"{name} must be a finite number >= 0, got {getattr(cfg, name)}")
     if cfg.anchor_coef > 0 and not cfg.init_from:
         raise ValueError("anchor_coef > 0 needs --init-from (the policy to stay near)")
+    if not 0.0 < cfg.anchor_decay <= 1.0:
+        raise ValueError(f"anchor_decay must be in (0, 1], got {cfg.anchor_decay}")
     if cfg.sil_capacity < 1:
         raise ValueError(f"sil_capacity must be >= 1 step, got {cfg.sil_capacity}")
     if cfg.obs_norm_steps < 0:
@@ -667,6 +672,14 @@ def bc_weight(cfg: PPOConfig, batch: int) -> float:
     return cfg.bc_coef * cfg.bc_decay ** (batch - cfg.critic_warmup)
 
 
+def anchor_weight(cfg: PPOConfig, batch: int) -> float:
+    """Weight of the KL anchor in batch ``batch`` (0-based): ``anchor_coef``, times ``anchor_decay`` per batch
+    after the critic warm-up (none during it: the actor does not learn then)."""
+    if cfg.anchor_coef == 0 or batch < cfg.critic_warmup:
+        return 0.0
+    return cfg.anchor_coef * cfg.anchor_decay ** (batch - cfg.critic_warmup)
+
+
 def action_distribution(policy, samples) -> tuple[torch.Tensor, torch.Tensor]:
     """(loc, scale), each (N, action_dim), of the Gaussian that ``policy`` (a policy operator) puts on the
     point clouds and state vectors of ``samples``."""
@@ -706,7 +719,7 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
     trunk is shared, so the actor stays exactly as it was). With ``bc_coef`` the BC term (``bc_weight``)
     is added to every minibatch's loss, with ``anchor_coef`` the KL to the initial policy (``anchor_kl``),
     and with ``sil_coef`` the self-imitation loss on as many steps of the best episodes (``rl/sil.py``)."""
-    warmup, bc = batch < cfg.critic_warmup, bc_weight(cfg, batch)
+    warmup, bc, anchor = batch < cfg.critic_warmup, bc_weight(cfg, batch), anchor_weight(cfg, batch)
     anchored = learner.anchor is not None and not warmup
     if anchored:
         add_anchor(flat, learner)
@@ -733,7 +746,7 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
                     loss = loss + bc * loss_td["loss_bc"]
                 if anchored:
                     loss_td["kl_init"] = anchor_kl(learner, flat[idx])
-                    loss = loss + cfg.anchor_coef * loss_td["kl_init"]
+                    loss = loss + anchor * loss_td["kl_init"]
                 if sil is not None:
                     term, parts = sil_loss(learner.actor_critic.get_policy_operator(), learner.critic,
                                            sil.sample(len(idx), generator).to(learner.device), cfg.sil_value_coef)
@@ -754,7 +767,7 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
             continue
         break
     return {**{k: v / max(steps, 1) for k, v in sums.items()}, "critic_warmup": float(warmup), "bc_weight": bc,
-            "update_steps_frac": steps / planned}
+            "anchor_weight": anchor, "update_steps_frac": steps / planned}
 
 
 def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:

@@ -50,6 +50,20 @@ def provenance(script_file: str, argv: list[str] | None = None) -> dict:
             "fast_mode": fast_mode()}
 
 
+def save_figure(fig, path, dpi: int = 100):
+    """A benchmark's PNG: ``fig`` laid out tightly, written to ``path`` (its folder made), and closed (pyplot
+    keeps every open figure alive). Returns ``path``."""
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def benchmark_results(script_file: str):
     """The folder a benchmark script (its ``__file__``, ``benchmarks/<theme>/<script>.py``) writes its results
     to: ``benchmarks/results/<theme>``."""

@@ -30,7 +30,7 @@ import numpy as np
 from dexart_lite.objects import list_objects
 from dexart_lite.experts import SOLVERS
 from dexart_lite.experts.solve import solve
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, save_figure, write_json
 
 SIGMAS = (0.0, 0.1, 0.3, 0.5, 1.0)
 
@@ -111,9 +111,7 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
     ax_success.legend()
     ax_return.legend()
     ax_return.set(xlabel="action noise std", ylabel="mean episode return")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 if __name__ == "__main__":

@@ -41,7 +41,7 @@ from dexart_lite.models.actor_critic import make_actor_critic  # noqa: E402
 from dexart_lite.rl import ppo  # noqa: E402
 from dexart_lite.rl.env import make_env  # noqa: E402
 from dexart_lite.rollout import parallel_step_rates  # noqa: E402
-from dexart_lite.utils import benchmark_results, fast_mode, provenance, write_json  # noqa: E402
+from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, write_json  # noqa: E402
 
 RESULTS = benchmark_results(__file__) / "bench_scaling.json"
 
@@ -85,10 +85,7 @@ def plot(result: dict, path: Path) -> Path:
     right.plot(counts, [v["per_process"] for v in result["plain_env"].values()], "s--", label="per process")
     right.set(xlabel="processes", ylabel="env steps/s", title=f"plain env.step, {result['cores']} cores")
     right.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv=None) -> dict:

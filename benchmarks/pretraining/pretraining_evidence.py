@@ -30,7 +30,7 @@ from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.pretrain.figures import plot_segmentation
 from dexart_lite.registration import TASKS
-from dexart_lite.utils import benchmark_results, provenance
+from dexart_lite.utils import benchmark_results, provenance, save_figure
 
 CLASS_WEIGHTS = {"bucket": "3,1,1,1"}  # DexArt's segmentation weights (functional part up-weighted)
 FIGURE_CLOUDS = 2  # per split in the true-vs-predicted pictures
@@ -164,9 +164,7 @@ def plot_ppo(summary: dict, path: Path) -> Path:
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
     fig.suptitle(f"PPO {summary['task']}: segmentation-pretrained vs. scratch encoder, {summary['preset']} preset")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    return path
+    return save_figure(fig, path)
 
 
 def run_after_ppo(args) -> int:

@@ -39,7 +39,7 @@ import dexart_lite
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 from dexart_lite.rl.evaluate import evaluate, evaluate_checkpoint
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, write_json
+from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
 
 RESULTS = benchmark_results(__file__)
 SPLITS = ("seen", "unseen")
@@ -221,10 +221,7 @@ def plot(per_seed: list[dict], path: Path, title: str, held: dict | None = None)
                     marker=marker, label=f"held-out, mean of seeds ({held['episodes_per_object']} per object): {split}")
     ax.set(xlabel="PPO frames", ylabel="success rate", ylim=(-0.05, 1.05), title=title)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":

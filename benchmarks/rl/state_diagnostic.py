@@ -38,7 +38,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import dexart_lite  # noqa: E402
 from dexart_lite.rl.ppo import PRESETS, PPOConfig  # noqa: E402
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, write_json  # noqa: E402
+from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json  # noqa: E402
 
 RESULTS = benchmark_results(__file__)
 # --preset cpu: departures from the cpu preset, as the laptop state-only runs of docs/results/ppo.md (bench_learning
@@ -127,9 +127,7 @@ def plot(result: dict, path: Path) -> None:
         ax.set(title=f"{task} (state only, {result['settings']['preset']})", xlabel="frames", ylim=(-0.02, 1.02))
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("success of collected episodes")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> dict:

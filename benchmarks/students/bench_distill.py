@@ -29,7 +29,7 @@ import numpy as np
 import dexart_lite
 from dexart_lite.imitation.distill import METHODS, DistillConfig
 from dexart_lite.study import run_arm
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, write_json
+from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
 
 RESULTS = benchmark_results(__file__)
 # DexArt Table 2, PPO without pre-training, success seen / unseen (mean over 3 seeds), for reference only
@@ -148,10 +148,7 @@ def plot(per_seed: list[dict], path: Path, title: str) -> None:
     ax.set(xlabel="frames (expert + student)", ylabel="success rate", ylim=(-0.05, 1.05), title=title)
     ax.text(0.01, 0.02, "stars: final student alone, seen and unseen", transform=ax.transAxes, fontsize=8)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":

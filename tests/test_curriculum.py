@@ -290,6 +290,28 @@ def test_the_curriculum_benchmark_writes_the_fields_it_documents(tmp_path, load_
     assert refreshed["per_seed"][0]["curve"] == expected
 
 
+def test_the_curriculum_benchmarks_student_step_alone_distils_and_records_each_seed(tmp_path, load_benchmark):
+    """--students-only: the student recipe's distillation without RL (fast mode: one object, one round), its
+    success read from the student's own evaluation; a second call reads the finished student back, trains nothing;
+    a recipe without a student is refused."""
+    bench = load_benchmark("curriculum_runs")
+    argv = ["--task", "laptop", "--obs", "cloud", "--recipe", "student_anchored", "--seeds", "0", "--students-only",
+            "--runs", str(tmp_path / "runs"), "--results", str(tmp_path / "results")]
+    result = bench.main(argv)
+    written = json.loads((tmp_path / "results" / "laptop_cloud_student.json").read_text())
+    assert written == json.loads(json.dumps(result))
+    row, = written["per_seed"]
+    student = tmp_path / "runs" / "laptop_cloud_student_s0"
+    assert row["seen_success"] == json.loads((student / "eval_seen.json").read_text())["success_rate"]
+    assert row["frames"] > 0 and row["wall_time_s"] > 0 and written["seen_success"] == row["seen_success"]
+    assert written["student"]["task"] == "laptop" and {"command", "machine", "eval_seed"} <= written.keys()
+    stamp = (student / "checkpoint.pt").stat().st_mtime_ns
+    assert bench.main(argv)["per_seed"] == written["per_seed"]
+    assert (student / "checkpoint.pt").stat().st_mtime_ns == stamp
+    with pytest.raises(ValueError, match="student recipe"):
+        bench.main([*argv[:5], "reverse_bc", *argv[6:]])
+
+
 def test_the_clone_capacity_benchmark_writes_the_fields_it_documents(tmp_path, load_benchmark):
     bench = load_benchmark("clone_capacity")
     path = tmp_path / "clone.json"

@@ -135,18 +135,9 @@ def step_breakdown(task: str, actions: np.ndarray, rounds: int) -> dict:
             "timed_step_ms": ms["timed"], "breakdown_sum_vs_full": sum(parts.values()) / ms["wrapped"]}
 
 
-def main(argv=None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--rounds", type=int, default=7)
-    parser.add_argument("--steps", type=int, default=40, help="control steps per part per round")
-    parser.add_argument("--json", type=Path, help="write the results here")
-    args = parser.parse_args(argv)
-
-    env = make(args.task, point_noise=True, camera_noise=True).unwrapped
-    env.reset(seed=0)
-    rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, size=(args.steps, 22)) * np.r_[[0.2] * 6, [1.0] * 16]
+def timed_parts(env, actions: np.ndarray, rng: np.random.Generator) -> dict:
+    """The pieces of a control step, each a function that runs it once per action of ``actions`` (steps, 22):
+    physics only, the full env step, the state snapshot, and the observation's stages on one rendered frame."""
     camera, sensor = env.sensor.camera, env.sensor
 
     def physics():
@@ -193,8 +184,36 @@ def main(argv=None) -> dict:
         for _ in actions:
             sensor.imagined_points()
 
-    parts = {"physics": physics, "full": full, "snapshot": snapshot, "render": render,
-             "back_project": back_project, "labels_crop": labels_crop, "sample": sample, "imagine": imagine}
+    return {"physics": physics, "full": full, "snapshot": snapshot, "render": render,
+            "back_project": back_project, "labels_crop": labels_crop, "sample": sample, "imagine": imagine}
+
+
+def print_tables(result: dict) -> None:
+    """The per-part and per-piece timings as markdown tables."""
+    print(f"| part ({result['task']}) | ms per control step |\n|---|---|")
+    for k, v in result["ms_per_step"].items():
+        print(f"| {k} | {v:.3f} |")
+    print(f"\nobs_overhead_ratio (full / physics) = {result['obs_overhead_ratio']:.2f}; "
+          f"{result['steps_per_s_full']:.0f} env steps/s on one core")
+    print(f"\n| piece of env.step ({result['task']}, wrapped) | ms per control step |\n|---|---|")
+    for k, v in sorted(result["breakdown"]["ms_per_step"].items(), key=lambda kv: -kv[1]):
+        print(f"| {k} | {v:.3f} |")
+    print(f"| sum / wrapped step ({result['breakdown']['wrapped_step_ms']:.3f} ms) | {result['breakdown']['breakdown_sum_vs_full']:.3f} |")
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--steps", type=int, default=40, help="control steps per part per round")
+    parser.add_argument("--json", type=Path, help="write the results here")
+    args = parser.parse_args(argv)
+
+    env = make(args.task, point_noise=True, camera_noise=True).unwrapped
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, size=(args.steps, 22)) * np.r_[[0.2] * 6, [1.0] * 16]
+    parts = timed_parts(env, actions, rng)
     times: dict[str, list[float]] = {k: [] for k in parts}
     for _ in range(args.rounds):
         for name, fn in parts.items():
@@ -214,15 +233,7 @@ def main(argv=None) -> dict:
         "settings": {"camera": "64x64 TinyRenderer", "points": "512 + 96", "dt": env.sim.dt, "frame_skip": env.frame_skip},
         **provenance(__file__, argv),
     }
-    print(f"| part ({args.task}) | ms per control step |\n|---|---|")
-    for k, v in ms.items():
-        print(f"| {k} | {v:.3f} |")
-    print(f"\nobs_overhead_ratio (full / physics) = {result['obs_overhead_ratio']:.2f}; "
-          f"{result['steps_per_s_full']:.0f} env steps/s on one core")
-    print(f"\n| piece of env.step ({args.task}, wrapped) | ms per control step |\n|---|---|")
-    for k, v in sorted(breakdown["ms_per_step"].items(), key=lambda kv: -kv[1]):
-        print(f"| {k} | {v:.3f} |")
-    print(f"| sum / wrapped step ({breakdown['wrapped_step_ms']:.3f} ms) | {breakdown['breakdown_sum_vs_full']:.3f} |")
+    print_tables(result)
     if args.json:
         write_json(args.json, result)
     return result

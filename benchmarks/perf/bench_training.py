@@ -324,6 +324,32 @@ def physics_comparison(args) -> dict:
     return out
 
 
+def print_tables(result: dict, ref: str | None) -> None:
+    """Collection, policy-call, update and whole-iteration figures as markdown tables and lines."""
+    print(f"| collection ({result['task']}, small-encoder policy) | frames/s |\n|---|---|")
+    for k, v in result['collection_fps'].items():
+        print(f"| {k} | {v:.0f} |")
+    print(f"\ncollector_vs_single_loop = {result['collector_vs_single_loop']:.2f} (target >= 1.6), "
+          f"collector_vs_parallel_loop = {result['collector_vs_parallel_loop']:.2f} (target >= 0.9)")
+    print(f"one action (small encoder, 1 thread): actor_critic(td) {result['policy_call_ms']['actor_critic']:.2f} ms, "
+          f"Acting {result['policy_call_ms']['acting']:.2f} ms (x{result['policy_call_ms']['acting_speedup']:.2f})\n")
+    print("| encoder | minibatch of 500 (s) | per 10k frames, 1 epoch (s) | faithful update, 20k x 10 epochs (s) "
+          "| dense max-pool minibatch (s) | speed-up |\n|---|---|---|---|---|---|")
+    for k, u in result['update'].items():
+        print(f"| {k} | {u['minibatch_s']:.3f} | {u['per_10k_frames_per_epoch_s']:.1f} | {u['faithful_update_s']:.0f} | "
+              f"{u['dense_maxpool_minibatch_s']:.3f} | {u['speedup_vs_dense']:.1f}x |")
+    iteration = result["iteration"]
+    est = iteration["faithful_estimate"]
+    print(f"\ncpu preset iteration ({iteration['frames_per_batch']} frames, {iteration['epochs']} epochs): "
+          f"collect {iteration['collect_fps']:.0f} frames/s, update {iteration['update_fps']:.0f} frames/s, "
+          f"whole iteration {iteration['iteration_fps']:.0f} frames/s")
+    print(f"faithful preset (from the parts): collect {est['collect_s']:.0f} s + update {est['update_s']:.0f} s per "
+          f"20k frames = {est['iteration_fps']:.0f} frames/s, {est['hours_per_1M_frames']:.1f} h per 1M frames")
+    if ref:
+        print(f"cpu preset iteration side by side: this checkout {iteration['iteration_fps_subprocess']:.0f} "
+              f"frames/s, {ref} {iteration['ref_iteration_fps']:.0f} frames/s: x{iteration['iteration_vs_ref']:.2f}")
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
@@ -388,27 +414,7 @@ def main(argv=None) -> dict:
         "load_average_1min": {"before": load_before, "after": os.getloadavg()[0]},
         **provenance(__file__, argv), "torch": torch.__version__,
     }
-    print(f"| collection ({args.task}, small-encoder policy) | frames/s |\n|---|---|")
-    for k, v in fps.items():
-        print(f"| {k} | {v:.0f} |")
-    print(f"\ncollector_vs_single_loop = {result['collector_vs_single_loop']:.2f} (target >= 1.6), "
-          f"collector_vs_parallel_loop = {result['collector_vs_parallel_loop']:.2f} (target >= 0.9)")
-    print(f"one action (small encoder, 1 thread): actor_critic(td) {policy_ms['actor_critic']:.2f} ms, "
-          f"Acting {policy_ms['acting']:.2f} ms (x{policy_ms['acting_speedup']:.2f})\n")
-    print("| encoder | minibatch of 500 (s) | per 10k frames, 1 epoch (s) | faithful update, 20k x 10 epochs (s) "
-          "| dense max-pool minibatch (s) | speed-up |\n|---|---|---|---|---|---|")
-    for k, u in update.items():
-        print(f"| {k} | {u['minibatch_s']:.3f} | {u['per_10k_frames_per_epoch_s']:.1f} | {u['faithful_update_s']:.0f} | "
-              f"{u['dense_maxpool_minibatch_s']:.3f} | {u['speedup_vs_dense']:.1f}x |")
-    est = iteration["faithful_estimate"]
-    print(f"\ncpu preset iteration ({iteration['frames_per_batch']} frames, {iteration['epochs']} epochs): "
-          f"collect {iteration['collect_fps']:.0f} frames/s, update {iteration['update_fps']:.0f} frames/s, "
-          f"whole iteration {iteration['iteration_fps']:.0f} frames/s")
-    print(f"faithful preset (from the parts): collect {est['collect_s']:.0f} s + update {est['update_s']:.0f} s per "
-          f"20k frames = {est['iteration_fps']:.0f} frames/s, {est['hours_per_1M_frames']:.1f} h per 1M frames")
-    if args.ref:
-        print(f"cpu preset iteration side by side: this checkout {iteration['iteration_fps_subprocess']:.0f} "
-              f"frames/s, {args.ref} {iteration['ref_iteration_fps']:.0f} frames/s: x{iteration['iteration_vs_ref']:.2f}")
+    print_tables(result, args.ref)
     print(f"load average (1 min): {load_before:.2f} before, {result['load_average_1min']['after']:.2f} after")
     if args.json:
         write_json(args.json, result)

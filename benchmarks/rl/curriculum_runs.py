@@ -3,6 +3,8 @@
     python benchmarks/rl/curriculum_runs.py --task laptop --obs state --recipe reverse_bc --seeds 0 1 --jobs 2 \
         --frames 1000000 --max-minutes 60
     python benchmarks/rl/curriculum_runs.py ...               # again: a seed with a checkpoint in --runs is resumed
+    python benchmarks/rl/curriculum_runs.py --task bucket --obs cloud --recipe student_anchored --seeds 0 \
+        --students-only                                        # the point-cloud student step alone (no RL)
 
 Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<obs>_<recipe>_s<seed>`` (with
 ``--jobs 2`` two seeds train at once, one collector process each). Written, after every finished seed, to
@@ -13,6 +15,10 @@ Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<o
     frames, seen_success, unseen_success, wall_time_s, demo_frames, guide_success, curve: frames, success of
     the collected episodes, of those from the true reset (h = 0) and from the frontier, the mean frontier),
     seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
+
+``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json``: task,
+student (the DistillConfig), per_seed (seed, frames, wall_time_s, checkpoint, seen_success, unseen_success),
+seen_success / unseen_success (means), eval_episodes_per_object, eval_seed, command, machine.
 
 Evaluation: deterministic actions from the true reset (no guide), ``--eval-episodes`` per seen and unseen
 object, env seed 100, as ``dexart-lite eval``. The guide and the demonstrations are the scripted experts,
@@ -183,6 +189,31 @@ def student_success(student: DistillConfig | None) -> dict | None:
             for split in ("seen", "unseen")}
 
 
+def distil_students(students: list[DistillConfig], path: Path, argv, note: str | None) -> dict:
+    """``--students-only``: the ``student`` step alone, each seed distilled (or read back when its report exists),
+    written to ``path``: the distillation settings, per seed its frames, wall time and success, the means."""
+    from dexart_lite.rl.checkpoint import load_checkpoint
+
+    summary = {"task": students[0].task, "obs": "cloud", "step": "student",
+               "student": dataclasses.asdict(students[0]) | {"seed": None, "out": None},
+               "eval_episodes_per_object": students[0].eval_episodes, "eval_seed": students[0].eval_seed,
+               "per_seed": [], **provenance(__file__, argv),
+               "machine": {**machine_info(), "torch_threads": torch.get_num_threads()}, **({"note": note} if note else {})}
+    for student in students:
+        if not (Path(student.out) / "report.md").exists():
+            distill(student)
+        log = (Path(student.out) / "log.csv").read_text().splitlines()
+        wall = float(dict(zip(log[0].split(","), log[-1].split(",")))["wall_s"])
+        checkpoint = Path(student.out) / CHECKPOINT
+        summary["per_seed"].append({"seed": student.seed, "frames": load_checkpoint(checkpoint)["frames"],
+                                    "wall_time_s": round(wall, 1), "checkpoint": str(checkpoint),
+                                    **{f"{k}_success": v for k, v in student_success(student).items()}})
+        for key in ("seen_success", "unseen_success"):
+            summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
+        write_json(path, summary)
+    return summary
+
+
 def curve(history: list[dict]) -> list[dict]:
     return [{k: no_nan(row.get(k)) for k in CURVE_KEYS} for row in history]
 
@@ -218,6 +249,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", default="runs/curriculum")
     parser.add_argument("--results", type=Path, default=RESULTS)
     parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
+    parser.add_argument("--students-only", action="store_true",
+                        help="a student recipe's distillation step alone (no RL), to <task>_cloud_student.json")
     parser.add_argument("--refresh-curves", action="store_true",
                         help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
     args = parser.parse_args(argv)
@@ -226,6 +259,11 @@ def main(argv=None) -> dict:
     if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
         raise ValueError("fast mode writes smoke results: pass --results elsewhere")
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
+    if args.students_only:
+        if not RECIPES[args.recipe].get("student") or args.obs != "cloud":
+            raise ValueError("--students-only needs a student recipe (e.g. student_anchored) and --obs cloud")
+        return distil_students([student_config(args.task, s, args) for s in args.seeds],
+                               args.results / f"{args.task}_cloud_student.json", argv, args.note)
     cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
     students = [student_config(args.task, s, args) if RECIPES[args.recipe].get("student") else None
                 for s in args.seeds]

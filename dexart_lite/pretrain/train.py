@@ -283,6 +283,38 @@ def plot_curves(rows: list[dict], method: str, path: Path) -> Path:
 
 
 # ----------------------------------------------------------------------------- training
+def load_data(cfg: PretrainConfig, generator: torch.Generator) -> tuple:
+    """Train and val clouds from seen objects, test clouds from unseen ones (None when not generated); at most
+    ``cfg.max_train`` training clouds, drawn with ``generator``."""
+    train_set = datasets.load_part(cfg.data, "train")
+    val_set = datasets.load_part(cfg.data, "val")
+    test_set = datasets.load_part(cfg.data, "test") if datasets.has_part(cfg.data, "test") else None
+    if cfg.max_train and len(train_set) > cfg.max_train:
+        train_set = train_set.subset(torch.randperm(len(train_set), generator=generator)[: cfg.max_train])
+    if cfg.method == "cls" and len(train_set.category.unique()) < 2:
+        raise ValueError(f"--method cls needs several categories: {cfg.data} holds one (use `dexart-lite data objects`)")
+    return train_set, val_set, test_set
+
+
+def knn_bank(cfg: PretrainConfig, encoder, train_set) -> tuple | None:
+    """SimSiam's k-NN memory: the features of (at most KNN_BANK) training clouds and their targets; None for the
+    other methods."""
+    if cfg.method != "simsiam":
+        return None
+    subset = train_set.subset(torch.randperm(len(train_set), generator=torch.Generator().manual_seed(0))[:KNN_BANK])
+    target = subset.category if knn_target(train_set) == "category" else subset.object_index
+    return encode_all(encoder, subset), target
+
+
+def append_row(path: Path, row: dict, header: bool) -> None:
+    """One epoch's row of ``curves.csv``, written as the epoch ends (long runs can be watched)."""
+    with path.open("a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(row))
+        if header:
+            writer.writeheader()
+        writer.writerow(row)
+
+
 def train(cfg: PretrainConfig) -> dict:
     """Pretrain, evaluate, save; returns the metrics and the paths of what was written."""
     validate(cfg)
@@ -292,14 +324,7 @@ def train(cfg: PretrainConfig) -> dict:
     torch.manual_seed(cfg.seed)
     generator = torch.Generator().manual_seed(cfg.seed)  # shuffling and SimSiam's augmentations
 
-    # ---- data: train and val from seen objects, test from unseen ones (when generated)
-    train_set = datasets.load_part(cfg.data, "train")
-    val_set = datasets.load_part(cfg.data, "val")
-    test_set = datasets.load_part(cfg.data, "test") if datasets.has_part(cfg.data, "test") else None
-    if cfg.max_train and len(train_set) > cfg.max_train:
-        train_set = train_set.subset(torch.randperm(len(train_set), generator=generator)[: cfg.max_train])
-    if cfg.method == "cls" and len(train_set.category.unique()) < 2:
-        raise ValueError(f"--method cls needs several categories: {cfg.data} holds one (use `dexart-lite data objects`)")
+    train_set, val_set, test_set = load_data(cfg, generator)
 
     # ---- model: the one PointNetEncoder and the method's head
     device = resolve_device(cfg.device, log=tqdm.write)
@@ -308,13 +333,6 @@ def train(cfg: PretrainConfig) -> dict:
     class_weights = parse_class_weights(cfg.class_weights, train_set.num_classes)
     class_weights = class_weights.to(device) if class_weights is not None else None
     optimizer = torch.optim.Adam([*encoder.parameters(), *head.parameters()], lr=cfg.lr)
-
-    def bank() -> tuple | None:  # SimSiam's k-NN memory: features of (at most KNN_BANK) training clouds
-        if cfg.method != "simsiam":
-            return None
-        subset = train_set.subset(torch.randperm(len(train_set), generator=torch.Generator().manual_seed(0))[:KNN_BANK])
-        target = subset.category if knn_target(train_set) == "category" else subset.object_index
-        return encode_all(encoder, subset), target
 
     # ---- epochs of shuffled minibatches, validation after each
     out = Path(cfg.out)
@@ -343,16 +361,12 @@ def train(cfg: PretrainConfig) -> dict:
                 break
         train_seconds = time.perf_counter() - tick
         encoder.eval(), head.eval()
-        val = evaluate(cfg.method, encoder, head, val_set, class_weights, bank())
+        val = evaluate(cfg.method, encoder, head, val_set, class_weights, knn_bank(cfg, encoder, train_set))
         metric = MAIN_METRIC[cfg.method]
         rows.append({"epoch": epoch, "steps": step, "clouds": seen, "train_loss": loss_sum / seen,
                      "val_loss": val["loss"], f"val_{metric}": val[metric], "train_seconds": train_seconds,
                      "wall_seconds": time.perf_counter() - start})
-        with csv_path.open("a", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-            if epoch == 1:
-                writer.writeheader()
-            writer.writerow(rows[-1])
+        append_row(csv_path, rows[-1], header=epoch == 1)
         if step == cfg.max_steps:
             break
     bar.close()
@@ -363,7 +377,7 @@ def train(cfg: PretrainConfig) -> dict:
                "seconds_per_epoch": sum(r["train_seconds"] for r in rows) / len(rows), "val": val}
     if test_set is not None:  # the k-NN probe on unseen objects only makes sense for categories
         metrics["test"] = evaluate(cfg.method, encoder, head, test_set, class_weights,
-                                   bank() if knn_target(train_set) == "category" else None)
+                                   knn_bank(cfg, encoder, train_set) if knn_target(train_set) == "category" else None)
     metrics["wall_seconds"] = time.perf_counter() - start
     metrics["config"], metrics["device"] = asdict(cfg), device.type
     encoder, head = encoder.cpu(), head.cpu()  # saved on the CPU: they load on any machine

@@ -770,11 +770,13 @@ def ppo_update(flat, learner: Learner, cfg: PPOConfig, batch: int = 0) -> dict:
             "anchor_weight": anchor, "update_steps_frac": steps / planned}
 
 
-def progress_bar(cfg: PPOConfig, initial: int) -> tqdm:
-    # with a time budget the ETA is for all frames; the budget ends the run sooner
+def progress_bar(cfg, initial: int) -> tqdm:
+    """The run's frames bar (``cfg``: a PPOConfig or SACConfig); with a time budget the ETA is for all frames,
+    the budget ends the run sooner."""
+    algo = getattr(cfg, "algo", "ppo").upper()
     return tqdm(total=cfg.frames, initial=initial, unit="frame", unit_scale=True, dynamic_ncols=True,
                 disable=not cfg.progress,
-                desc=f"PPO {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)" if cfg.max_minutes else ""))
+                desc=f"{algo} {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)" if cfg.max_minutes else ""))
 
 
 def evaluate_and_report(cfg, policy, history: list, start: float) -> dict:
@@ -806,6 +808,27 @@ def warmstart_evaluation(cfg: PPOConfig, learner: Learner) -> dict:
 
     return {split: evaluate(learner.actor_critic, cfg.task, split, cfg.eval_episodes, cfg.eval_seed,
                             cfg.env_kwargs())["success_rate"] for split in ("seen", "unseen")}
+
+
+def learn(data, learner: Learner, acting, cfg: PPOConfig, batch: int, device: torch.device) -> tuple:
+    """One collected batch learnt from: advantages, the PPO update (on ``device``), the acting copy synced.
+    Returns the batch on the CPU (its rewards scaled by ``cfg.reward_scale``) and the update's mean losses."""
+    data = data.contiguous()  # the distributed collector yields a lazy stack of the workers' batches
+    on_device = device.type != "cpu"
+    data = data.to(device) if on_device else data
+    flat = advantages(data, learner, cfg.reward_scale)  # the rewards in data are scaled from here on
+    if learner.sil is not None:  # the batch's finished episodes join the best ones (before the update)
+        learner.sil.add(data)
+    losses = ppo_update(flat, learner, cfg, batch)
+    learner.sync_acting(acting)
+    return (data.cpu() if on_device else data), losses  # the log and the curriculum read it on the CPU
+
+
+def learner_stats(learner: Learner) -> dict:
+    """The policy's mean log std and, with self-imitation, the size and best return of its buffer."""
+    return {"log_std": float(action_log_std(learner.actor_critic).mean()),
+            **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()}
+               if learner.sil is not None else {})}
 
 
 def train(cfg: PPOConfig) -> dict:
@@ -846,16 +869,7 @@ def train(cfg: PPOConfig) -> dict:
         for data in (collector if collector is not None else []):  # not `or []`: RayCollector breaks bool()
             collected = time.perf_counter()
             torch.set_num_threads(learner_threads)
-            # contiguous: the distributed collector yields a lazy stack of the workers' batches
-            data = data.contiguous()
-            on_device = device.type != "cpu"
-            data = data.to(device) if on_device else data
-            flat = advantages(data, learner, cfg.reward_scale)  # the rewards in data are scaled from here on
-            if learner.sil is not None:  # the batch's finished episodes join the best ones (before the update)
-                learner.sil.add(data)
-            losses = ppo_update(flat, learner, cfg, batches)
-            data = data.cpu() if on_device else data  # the log and the curriculum read it on the CPU
-            learner.sync_acting(acting)
+            data, losses = learn(data, learner, acting, cfg, batches, device)
             collector.update_policy_weights_()
             starts = curriculum.update(data) if curriculum is not None else {}  # frontiers move on this batch
             if cfg.curriculum == "reverse":
@@ -866,10 +880,7 @@ def train(cfg: PPOConfig) -> dict:
             n = data.numel()
             frames_done, batches = frames_done + n, batches + 1
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **starts, **losses,
-                   **value_error_at_start(data, cfg.gamma),
-                   "log_std": float(action_log_std(learner.actor_critic).mean()),
-                   **({"sil_steps": len(learner.sil), "sil_best_return": learner.sil.best_return()}
-                      if learner.sil is not None else {}),
+                   **value_error_at_start(data, cfg.gamma), **learner_stats(learner),
                    "collect_s": collected - tick, "update_s": updated - collected,
                    "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
                    "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}

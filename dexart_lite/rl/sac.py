@@ -43,7 +43,8 @@ from dexart_lite.registration import OBSERVATIONS, TASKS
 from dexart_lite.rl.checkpoint import load_checkpoint, network_encoder, save_checkpoint
 from dexart_lite.rl.curriculum import guide_demos, send_level
 from dexart_lite.rl.env import env_dims, make_env
-from dexart_lite.rl.ppo import PPOConfig, batch_stats, curriculum_config, evaluate_and_report, make_curriculum
+from dexart_lite.rl.ppo import (PPOConfig, batch_stats, curriculum_config, evaluate_and_report, make_curriculum,
+                                progress_bar)
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.utils import DEVICES, check_choice, optimizer_to, resolve_device, to_cpu
 
@@ -301,6 +302,32 @@ def restore(path: Path, cfg: SACConfig, actor, loss, optimizer, online, curricul
 
 
 # ---------------------------------------------------------------- training
+def place(cfg: SACConfig, actor, loss, optimizer) -> tuple:
+    """The networks, the loss and Adam's moments moved to ``cfg.device`` (a resumed run loaded them on the
+    CPU); returns the device and the actor the collector and the evaluation act with (a CPU copy on cuda)."""
+    device = resolve_device(cfg.device, log=tqdm.write)
+    if device.type == "cpu":
+        return device, actor
+    acting = copy.deepcopy(actor)
+    actor.to(device)
+    loss.to(device)
+    optimizer_to(optimizer, device)
+    return device, acting
+
+
+def learn(steps: int, cfg: SACConfig, loss, updater, optimizer, online, demo_buffer, device) -> dict:
+    """``steps`` updates on batches mixed from the online and the demonstration buffers; the mean of each loss
+    term (NaN without updates) and the demonstrations' share of the last batch."""
+    sums, demo_share = dict.fromkeys(LOSS_KEYS, 0.0), math.nan
+    for _ in range(steps):
+        sample = mixed_batch(online, demo_buffer, cfg.batch, cfg.demo_fraction)
+        sample = sample.to(device) if device.type != "cpu" else sample
+        for key, value in update(loss, updater, optimizer, sample).items():
+            sums[key] += value
+        demo_share = float(sample["demo"].float().mean())
+    return {**{k: (v / steps if steps else math.nan) for k, v in sums.items()}, "demo_share": demo_share}
+
+
 def train(cfg: SACConfig) -> dict:
     """Train, evaluate on seen and unseen objects, write the report; returns the paths and results."""
     from torchrl.collectors import Collector
@@ -328,14 +355,8 @@ def train(cfg: SACConfig) -> dict:
     curriculum = make_curriculum(cfg)
     frames_done, batches, history = (restore(out / CHECKPOINT, cfg, actor, loss, optimizer, online, curriculum)
                                      if cfg.resume else (0, 0, []))
-    # the networks learn on the device; the collector and the evaluation act with a CPU copy of the actor
-    device = resolve_device(cfg.device, log=tqdm.write)
+    device, acting = place(cfg, actor, loss, optimizer)
     on_device = device.type != "cpu"
-    acting = copy.deepcopy(actor) if on_device else actor
-    if on_device:
-        actor.to(device)
-        loss.to(device)
-        optimizer_to(optimizer, device)  # a resumed run's Adam moments were loaded on the CPU
 
     # ---- collection: one env in this process, the actor's stochastic actions
     collector = None
@@ -343,10 +364,7 @@ def train(cfg: SACConfig) -> dict:
         level = dict(level=curriculum.level(), guide=cfg.guide, guide_render=cfg.guide_render) if curriculum else {}
         collector = Collector(partial(env_fn, seed=cfg.seed + 1000 * batches, **level), acting,
                               frames_per_batch=cfg.frames_per_batch, total_frames=cfg.frames - frames_done)
-    logger = CSVLogger(exp_name="log", log_dir=str(out))
-    bar = tqdm(total=cfg.frames, initial=frames_done, unit="frame", unit_scale=True, dynamic_ncols=True,
-               disable=not cfg.progress, desc=f"SAC {cfg.task}" + (f" (stops after {cfg.max_minutes:g} min)"
-                                                                   if cfg.max_minutes else ""))
+    logger, bar = CSVLogger(exp_name="log", log_dir=str(out)), progress_bar(cfg, frames_done)
     tick = time.perf_counter()
     try:
         for data in (collector if collector is not None else []):  # not `or []`: RayCollector breaks bool()
@@ -360,13 +378,7 @@ def train(cfg: SACConfig) -> dict:
 
             # ---- updates: utd per collected frame, once the warm-up frames are in
             steps = int(round(cfg.utd * n)) if frames_done >= cfg.warmup_frames else 0
-            sums, demo_share = dict.fromkeys(LOSS_KEYS, 0.0), math.nan
-            for _ in range(steps):
-                sample = mixed_batch(online, demo_buffer, cfg.batch, cfg.demo_fraction)
-                sample = sample.to(device) if on_device else sample
-                for key, value in update(loss, updater, optimizer, sample).items():
-                    sums[key] += value
-                demo_share = float(sample["demo"].float().mean())
+            losses = learn(steps, cfg, loss, updater, optimizer, online, demo_buffer, device)
             if on_device:
                 acting.load_state_dict(actor.state_dict())
             collector.update_policy_weights_()
@@ -374,8 +386,7 @@ def train(cfg: SACConfig) -> dict:
 
             # ---- logging and checkpoints
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **starts,
-                   **{k: (v / steps if steps else math.nan) for k, v in sums.items()}, "updates": steps,
-                   "demo_share": demo_share, "buffer": len(online), "collect_s": collected - tick,
+                   **losses, "updates": steps, "buffer": len(online), "collect_s": collected - tick,
                    "update_s": updated - collected, "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
             history.append(row)
             logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)

@@ -95,6 +95,11 @@ RECIPES = {
     # (defined, not run yet)
     "student_anchored_decay": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
                                "anchor_coef": 1.0, "anchor_decay": 0.99, "obs_norm_steps": 0, "student": True},
+    # anchored_release: the anchor let go within a short run (x 0.95 per batch: half its weight ~14 batches, 56k
+    # frames, after the critic warm-up, a tenth after ~45): does PPO climb above the student or fall from it
+    # once the KL to it no longer holds it?
+    "student_anchored_release": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
+                                 "anchor_coef": 1.0, "anchor_decay": 0.95, "obs_norm_steps": 0, "student": True},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }

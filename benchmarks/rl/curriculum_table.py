@@ -57,8 +57,8 @@ def runs_table() -> str:
             "unseen success | training time / seed | JSON |", "|" + "---|" * 10]
     for path in sorted((RESULTS / "rl" / "curriculum").glob("*.json")):
         result = load(path)
-        if "per_seed" not in result or not result["per_seed"]:
-            continue
+        if "per_seed" not in result or not result["per_seed"] or result.get("step") == "student":
+            continue  # not a run of RL: a `--students-only` distillation (its students are zoo entries)
         seeds = result["per_seed"]
         seen, unseen = [r["seen_success"] for r in seeds], [r["unseen_success"] for r in seeds]
         frames = " / ".join(f"{r['frames'] / 1000:.0f}k" for r in seeds)
@@ -119,7 +119,8 @@ def zoo_table() -> str:
     rows = ["| `--ckpt` | trained by | frames (its training data) | seed | seen / unseen success (3 eps per object, env seed 100) |",
             "|---|---|---|---|---|"]
     for task, e in manifest.items():
-        rows.append(f"| `zoo:{task}` | {e['trainer']} (`{e['training_command']}`) | {e['frames'] / 1000:.0f}k | {e['seed']} "
+        command = re.sub(r" --note .*$", "", e["training_command"] or "")  # the note is in the manifest, not the table
+        rows.append(f"| `zoo:{task}` | {e['trainer']} (`{command}`) | {e['frames'] / 1000:.0f}k | {e['seed']} "
                     f"| [{e['seen_success']:.2f} / {e['unseen_success']:.2f}](benchmarks/results/students/zoo.json) |")
     return "\n".join(rows)
 

@@ -40,7 +40,8 @@ HEADLINE = {
     "bucket": {"student": "distill_bucket.json", "rl": None, "rl_state": None},
     "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": "laptop_cloud_student_anchored.json",
                "rl_state": "laptop_state_dagger_wide.json"},
-    "toilet": {"student": "distill_toilet_episodes2x.json", "rl": None, "rl_state": None},
+    "toilet": {"student": "distill_toilet_episodes2x.json", "rl": "toilet_cloud_student_anchored_release.json",
+               "rl_state": None},
 }
 
 

@@ -92,7 +92,7 @@ RECIPES = {
                          "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True},
     # anchored_decay: the same with the anchor let go slowly (x 0.99 per batch: half its weight after ~70 batches,
     # 280k frames), so that RL may move further from the student once its critic and collection are settled
-    # (defined, not run yet)
+    # (defined; its PPO not run: in runs of ~40 min x 0.99 per batch leaves the anchor at ~0.6, see the release recipe)
     "student_anchored_decay": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
                                "anchor_coef": 1.0, "anchor_decay": 0.99, "obs_norm_steps": 0, "student": True},
     # anchored_release: the anchor let go within a short run (x 0.95 per batch: half its weight ~14 batches, 56k

@@ -203,7 +203,8 @@ def distil_students(students: list[DistillConfig], path: Path, argv, note: str |
                "student": dataclasses.asdict(students[0]) | {"seed": None, "out": None},
                "eval_episodes_per_object": students[0].eval_episodes, "eval_seed": students[0].eval_seed,
                "per_seed": [], **provenance(__file__, argv),
-               "machine": {**machine_info(), "torch_threads": torch.get_num_threads()}, **({"note": note} if note else {})}
+               "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
+               **({"note": note} if note else {})}
     for student in students:
         if not (Path(student.out) / "report.md").exists():
             distill(student)

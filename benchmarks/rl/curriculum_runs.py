@@ -28,6 +28,7 @@ which read the simulator: they are used in training only; the policy observes wh
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import json
 import math
@@ -59,6 +60,11 @@ DEMO = {"demo_episodes": 4, "demo_noise": 0.1, "bc_warmstart": 30, "critic_warmu
 WIDE = {"head": "256,256", "state_hidden": 256}
 GUARDED = {**DEMO, "demo_episodes": 8, "bc_warmstart": 50, "critic_warmup": 5, "bc_coef": 1.0, "bc_decay": 0.99,
            "critic_detach": True, "critic_lr": 1e-3, "lr": 1e-4, "target_kl": 0.02}
+# anchored: the `finetune` preset of rl/ppo.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out of the
+# trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop students on both
+# splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
+ANCHORED = {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
+            "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True}
 RECIPES = {
     "ppo": {},
     "bc": dict(DEMO),  # the same warm start and BC term, every episode from the true reset
@@ -85,21 +91,15 @@ RECIPES = {
     # cloned again: the guide's 4 noisy episodes per object and 3 rounds of 4 episodes per object that the
     # student drives (labelled by the guide) are the BC term's data
     "student_guarded": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "bc_warmstart": 0, "student": True},
-    # anchored: the `finetune` preset of rl/ppo.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out
-    # of the trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop
-    # students on both splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
-    "student_anchored": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
-                         "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True},
+    "student_anchored": dict(ANCHORED),  # ANCHORED above
     # anchored_decay: the same with the anchor let go slowly (x 0.99 per batch: half its weight after ~70 batches,
     # 280k frames), so that RL may move further from the student once its critic and collection are settled
     # (defined; its PPO not run: in runs of ~40 min x 0.99 per batch leaves the anchor at ~0.6, see the release recipe)
-    "student_anchored_decay": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
-                               "anchor_coef": 1.0, "anchor_decay": 0.99, "obs_norm_steps": 0, "student": True},
+    "student_anchored_decay": {**ANCHORED, "anchor_decay": 0.99},
     # anchored_release: the anchor let go within a short run (x 0.95 per batch: half its weight ~14 batches, 56k
     # frames, after the critic warm-up, a tenth after ~45): does PPO climb above the student or fall from it
     # once the KL to it no longer holds it?
-    "student_anchored_release": {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
-                                 "anchor_coef": 1.0, "anchor_decay": 0.95, "obs_norm_steps": 0, "student": True},
+    "student_anchored_release": {**ANCHORED, "anchor_decay": 0.95},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
@@ -208,8 +208,8 @@ def distil_students(students: list[DistillConfig], path: Path, argv, note: str |
     for student in students:
         if not (Path(student.out) / "report.md").exists():
             distill(student)
-        log = (Path(student.out) / "log.csv").read_text().splitlines()
-        wall = float(dict(zip(log[0].split(","), log[-1].split(",")))["wall_s"])
+        with (Path(student.out) / "log.csv").open(newline="") as f:
+            wall = float(list(csv.DictReader(f))[-1]["wall_s"])  # the last round's training time
         checkpoint = Path(student.out) / CHECKPOINT
         summary["per_seed"].append({"seed": student.seed, "frames": load_checkpoint(checkpoint)["frames"],
                                     "wall_time_s": round(wall, 1), "checkpoint": str(checkpoint),

@@ -58,8 +58,8 @@ def runs_table() -> str:
             "unseen success | training time / seed | JSON |", "|" + "---|" * 10]
     for path in sorted((RESULTS / "rl" / "curriculum").glob("*.json")):
         result = load(path)
-        if "per_seed" not in result or not result["per_seed"] or result.get("step") == "student":
-            continue  # not a run of RL: a `--students-only` distillation (its students are zoo entries)
+        if "recipe" not in result or not result.get("per_seed"):
+            continue  # not a run of RL (e.g. a `--students-only` distillation, whose students are zoo entries)
         seeds = result["per_seed"]
         seen, unseen = [r["seen_success"] for r in seeds], [r["unseen_success"] for r in seeds]
         frames = " / ".join(f"{r['frames'] / 1000:.0f}k" for r in seeds)

@@ -1,0 +1,175 @@
+"""Each point-cloud RL run against the student it started from, evaluated again side by side with more episodes.
+
+    python benchmarks/rl/paired_eval.py --jobs 2                    # every RL run set with a student, 10 eps/object
+    python benchmarks/rl/paired_eval.py --run-sets laptop_cloud_student_anchored --episodes 20
+
+Why: the runs' own evaluations (``curriculum_runs.py``) use 3 episodes per object, a standard error of 0.07-0.11 per
+seed and split, as large as any change RL made. Here, for every committed RL run set that starts from a distilled
+student (``benchmarks/results/rl/curriculum/<task>_cloud_<recipe>.json`` with a ``student`` entry) and each of its
+seeds, the RL policy (``runs/curriculum/<task>_cloud_<recipe>_s<seed>/checkpoint.pt``) and the student it started
+from (the checkpoint its config's ``init_from`` names) are evaluated as ``dexart-lite eval`` does: deterministic
+actions from the true reset, ``--episodes`` per seen and unseen object, env seed 100 for both. The checkpoints are
+not in git (``runs/`` is untracked): the script needs the runs on this machine and names any that are missing.
+
+Standard errors are stratified by object, since every object gets the same k episodes:
+se = sqrt(sum_o p_o (1 - p_o) / k) / n_objects; a difference's se adds the two in quadrature (independent episodes);
+a run set's mean delta over its seeds has se = sqrt(sum of the seeds' se^2) / n_seeds.
+
+Written to ``benchmarks/results/rl/paired_eval.json``: episodes_per_object, eval_seed, runs (per run set and seed:
+task, recipe, seed, rl_frames, student and rl, each per split {success, se, objects: success per object}; delta per
+split {value, se}), summary (per run set: task, recipe, seeds, rl_frames, and per split the mean student, rl and
+delta over the seeds with the delta's se), command, machine; and ``paired_eval.png`` (the deltas).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from dexart_lite.rl.checkpoint import load_checkpoint
+from dexart_lite.rl.evaluate import evaluate_checkpoint
+from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, write_json
+
+RESULTS = benchmark_results(__file__)
+CURRICULUM = RESULTS / "curriculum"
+SPLITS = ("seen", "unseen")
+
+
+def run_sets(names: list[str] | None, folder: Path = CURRICULUM) -> list[dict]:
+    """The committed RL run sets that start from a student (their JSON has a ``recipe`` and a ``student``), all or
+    those named (file stems, e.g. ``laptop_cloud_student_anchored``)."""
+    found = {p.stem: json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))}
+    found = {stem: d for stem, d in found.items() if d.get("recipe") and d.get("student")}
+    unknown = sorted(set(names or ()) - set(found))
+    if unknown:
+        raise ValueError(f"unknown run set(s) {', '.join(unknown)}; valid: {', '.join(found)}")
+    return [found[n] for n in (names or found)]
+
+
+def checkpoints(run_set: dict, runs: Path) -> list[dict]:
+    """Per seed of a run set: its RL checkpoint and the student checkpoint that run started from."""
+    pairs = []
+    for row in run_set["per_seed"]:
+        rl = runs / f"{run_set['task']}_{run_set['obs']}_{run_set['recipe']}_s{row['seed']}" / "checkpoint.pt"
+        if not rl.is_file():
+            raise FileNotFoundError(f"RL checkpoint not found: {rl} (the runs are not in git; train them with "
+                                    f"{run_set['command']})")
+        payload = load_checkpoint(rl)
+        student = Path(payload["config"]["init_from"])
+        if not student.is_file():
+            raise FileNotFoundError(f"student checkpoint not found: {student} (named by {rl})")
+        pairs.append({"task": run_set["task"], "recipe": run_set["recipe"], "seed": row["seed"],
+                      "rl_frames": payload["frames"], "rl": rl, "student": student})
+    return pairs
+
+
+def split_stats(result: dict) -> dict:
+    """Success, its object-stratified se, and success per object, of one ``evaluate`` result."""
+    per_object = {name: r["success_rate"] for name, r in result["objects"].items()}
+    k = result["episodes_per_object"]
+    se = math.sqrt(sum(p * (1 - p) / k for p in per_object.values())) / len(per_object)
+    return {"success": result["success_rate"], "se": se, "objects": per_object}
+
+
+def compare(student: dict, rl: dict) -> dict:
+    """Per split, RL minus student and its se (``student``, ``rl``: split -> ``split_stats``)."""
+    return {s: {"value": rl[s]["success"] - student[s]["success"],
+                "se": math.hypot(rl[s]["se"], student[s]["se"])} for s in student}
+
+
+def summarise(rows: list[dict]) -> list[dict]:
+    """Per run set (task, recipe): the seeds' mean student, RL and delta per split, and the delta's se."""
+    sets = {}
+    for row in rows:
+        sets.setdefault((row["task"], row["recipe"]), []).append(row)
+    summary = []
+    for (task, recipe), seeds in sets.items():
+        entry = {"task": task, "recipe": recipe, "seeds": [r["seed"] for r in seeds],
+                 "rl_frames": [r["rl_frames"] for r in seeds]}
+        for s in SPLITS:
+            entry[s] = {"student": float(np.mean([r["student"][s]["success"] for r in seeds])),
+                        "rl": float(np.mean([r["rl"][s]["success"] for r in seeds])),
+                        "delta": float(np.mean([r["delta"][s]["value"] for r in seeds])),
+                        "delta_se": math.sqrt(sum(r["delta"][s]["se"] ** 2 for r in seeds)) / len(seeds)}
+        summary.append(entry)
+    return summary
+
+
+def evaluate_all(pairs: list[dict], episodes: int, seed: int, jobs: int) -> dict:
+    """Every (checkpoint, split) evaluation, ``jobs`` at a time; keyed by (checkpoint path, split)."""
+    # a student that starts several run sets (one per recipe) is evaluated once
+    work = list(dict.fromkeys((str(p[who]), split) for p in pairs for who in ("student", "rl") for split in SPLITS))
+    results = {}
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(evaluate_checkpoint, path, split, episodes, seed): (path, split)
+                   for path, split in work}
+        for future in tqdm(as_completed(futures), total=len(futures), desc="evaluations", unit="eval"):
+            results[futures[future]] = future.result()
+    return results
+
+
+def plot(summary: list[dict], rows: list[dict], path: Path) -> Path:
+    """RL minus student per run set and split: the seeds' mean with its se, and each seed as a dot."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(1.6 + 1.4 * len(summary), 3.4))
+    for j, split in enumerate(SPLITS):
+        x = np.arange(len(summary)) + (j - 0.5) * 0.35
+        ax.bar(x, [e[split]["delta"] for e in summary], 0.35, yerr=[e[split]["delta_se"] for e in summary],
+               capsize=3, label=split, alpha=0.7)
+        for xi, e in zip(x, summary):
+            seeds = [r["delta"][split]["value"] for r in rows if (r["task"], r["recipe"]) == (e["task"], e["recipe"])]
+            ax.plot([xi] * len(seeds), seeds, "k.", ms=4)
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xticks(np.arange(len(summary)), [f"{e['task']}\n{e['recipe']}" for e in summary], fontsize=7)
+    ax.set_ylabel("success: RL - student")
+    ax.legend(fontsize=8)
+    return save_figure(fig, path)
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run-sets", nargs="+", default=None, help="JSON stems under benchmarks/results/rl/"
+                        "curriculum (default: every RL run set that starts from a student)")
+    parser.add_argument("--episodes", type=int, default=10, help="per seen and unseen object")
+    parser.add_argument("--seed", type=int, default=100, help="env seed of every evaluation (DexArt: 100)")
+    parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
+    parser.add_argument("--runs", type=Path, default=Path("runs/curriculum"))
+    parser.add_argument("--out", type=Path, default=RESULTS / "paired_eval.json")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    if fast_mode() and args.out == RESULTS / "paired_eval.json":  # never overwrite the evidence with a smoke run
+        raise ValueError("fast mode writes smoke results: pass --out elsewhere")
+    pairs = [p for run_set in run_sets(args.run_sets) for p in checkpoints(run_set, args.runs)]
+    results = evaluate_all(pairs, args.episodes, args.seed, args.jobs)
+    rows = []
+    for p in pairs:
+        stats = {who: {s: split_stats(results[(str(p[who]), s)]) for s in SPLITS} for who in ("student", "rl")}
+        rows.append({"task": p["task"], "recipe": p["recipe"], "seed": p["seed"], "rl_frames": p["rl_frames"],
+                     "rl_checkpoint": str(p["rl"]), "student_checkpoint": str(p["student"]), **stats,
+                     "delta": compare(stats["student"], stats["rl"]),
+                     "wall_time_s": round(sum(results[(str(p[w]), s)]["wall_time_s"]
+                                              for w in ("student", "rl") for s in SPLITS), 1)})
+    summary = summarise(rows)
+    out = {"episodes_per_object": args.episodes, "eval_seed": args.seed, "runs": rows, "summary": summary,
+           **provenance(__file__, argv), "jobs": args.jobs}
+    write_json(args.out, out)
+    plot(summary, rows, args.out.with_suffix(".png"))
+    for e in summary:
+        print(f"{e['task']} {e['recipe']}: " + ", ".join(
+            f"{s} {e[s]['student']:.2f} -> {e[s]['rl']:.2f} ({e[s]['delta']:+.2f} ± {e[s]['delta_se']:.2f})"
+            for s in SPLITS))
+    print(f"wrote {args.out}")
+    return out
+
+
+if __name__ == "__main__":
+    main()

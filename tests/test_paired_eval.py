@@ -1,0 +1,57 @@
+"""benchmarks/rl/paired_eval.py: the statistics of RL against its student, checked against numbers worked by hand,
+and its clear errors (the evaluations themselves are ``rl.evaluate``'s, tested in test_ppo)."""
+
+import json
+import math
+
+import pytest
+
+
+def fake_eval(per_object: dict, k: int) -> dict:
+    """An ``evaluate`` result with the given success per object, k episodes each."""
+    return {"episodes_per_object": k, "success_rate": sum(per_object.values()) / len(per_object),
+            "objects": {name: {"success_rate": p} for name, p in per_object.items()}}
+
+
+def test_success_and_its_object_stratified_standard_error(load_benchmark):
+    bench = load_benchmark("paired_eval")
+    # two objects, 4 episodes each, at 0.5 and 1.0: se = sqrt(0.5 * 0.5 / 4 + 0) / 2 = 0.125
+    stats = bench.split_stats(fake_eval({"a": 0.5, "b": 1.0}, 4))
+    assert stats["success"] == 0.75 and stats["se"] == pytest.approx(0.125)
+    assert stats["objects"] == {"a": 0.5, "b": 1.0}
+    # every object always or never succeeding: no sampling error at all
+    assert bench.split_stats(fake_eval({"a": 0.0, "b": 1.0}, 10))["se"] == 0.0
+
+
+def test_rl_minus_student_per_split_and_over_seeds(load_benchmark):
+    bench = load_benchmark("paired_eval")
+    student = {s: bench.split_stats(fake_eval({"a": 0.5, "b": 1.0}, 4)) for s in bench.SPLITS}
+    rl = {"seen": bench.split_stats(fake_eval({"a": 1.0, "b": 1.0}, 4)),
+          "unseen": bench.split_stats(fake_eval({"a": 0.5, "b": 0.5}, 4))}
+    delta = bench.compare(student, rl)
+    assert delta["seen"]["value"] == pytest.approx(0.25) and delta["seen"]["se"] == pytest.approx(0.125)
+    # unseen: 0.5 - 0.75, se = hypot(0.125, sqrt(2 * 0.0625) / 2)
+    assert delta["unseen"]["value"] == pytest.approx(-0.25)
+    assert delta["unseen"]["se"] == pytest.approx(math.hypot(0.125, math.sqrt(0.125) / 2))
+    rows = [{"task": "laptop", "recipe": "r", "seed": seed, "rl_frames": 10, "student": student, "rl": rl,
+             "delta": delta} for seed in (0, 1)]
+    entry, = bench.summarise(rows)
+    assert entry["seeds"] == [0, 1] and entry["seen"]["delta"] == pytest.approx(0.25)
+    assert entry["seen"]["student"] == 0.75 and entry["seen"]["rl"] == 1.0
+    # two seeds with se 0.125 each: the mean's se is sqrt(2) * 0.125 / 2
+    assert entry["seen"]["delta_se"] == pytest.approx(math.sqrt(2) * 0.125 / 2)
+
+
+def test_unknown_run_sets_and_missing_checkpoints_are_named(tmp_path, load_benchmark):
+    bench = load_benchmark("paired_eval")
+    run_set = {"task": "laptop", "obs": "cloud", "recipe": "student_anchored", "student": {"task": "laptop"},
+               "per_seed": [{"seed": 0}], "command": "python benchmarks/rl/curriculum_runs.py ..."}
+    (tmp_path / "laptop_cloud_student_anchored.json").write_text(json.dumps(run_set))
+    (tmp_path / "laptop_state_bc.json").write_text(json.dumps({**run_set, "obs": "state", "student": None}))
+    assert [r["recipe"] for r in bench.run_sets(None, tmp_path)] == ["student_anchored"]  # a student's runs only
+    with pytest.raises(ValueError, match="unknown run set.*laptop_state_bc.*valid: laptop_cloud_student_anchored"):
+        bench.run_sets(["laptop_state_bc"], tmp_path)
+    with pytest.raises(FileNotFoundError, match="RL checkpoint not found.*laptop_cloud_student_anchored_s0"):
+        bench.checkpoints(run_set, tmp_path / "runs")
+    with pytest.raises(ValueError, match="--episodes must be >= 1"):
+        bench.main(["--episodes", "0"])

@@ -29,8 +29,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +36,7 @@ import numpy as np
 import dexart_lite
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
-from dexart_lite.rl.evaluate import evaluate, evaluate_checkpoint
+from dexart_lite.rl.evaluate import evaluate, evaluate_many
 from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
 
 RESULTS = benchmark_results(__file__)
@@ -94,28 +92,14 @@ def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
 def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
     """Student and final policy of every seed evaluated with ``episodes`` per object on both splits at
     env seed ``seed``; each evaluation cached as JSON next to its checkpoint."""
-    cached = lambda folder, split: Path(folder) / f"heldout_{split}_e{episodes}_seed{seed}.json"  # noqa: E731
-    todo = {}
-    for r in per_seed:
-        for folder in (Path(r["student"]), Path(r["config"]["out"])):
-            for split in SPLITS:
-                cache = cached(folder, split)
-                if not cache.exists():
-                    todo[cache] = (str(folder / ppo.CHECKPOINT), split, episodes, seed)
-    if todo:
-        print(f"held-out evaluation: {len(todo)} runs of {episodes} episodes per object, {jobs} at a time")
-        if jobs > 1:  # spawned workers: pybullet and torch do not survive a fork of a busy parent
-            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-                results = dict(zip(todo, pool.map(evaluate_checkpoint, *zip(*todo.values()))))
-        else:
-            results = {cache: evaluate_checkpoint(*job) for cache, job in todo.items()}
-        for cache, result in results.items():
-            write_json(cache, result)
+    checkpoint = lambda folder: str(Path(folder) / ppo.CHECKPOINT)  # noqa: E731
+    folders = [f for r in per_seed for f in (r["student"], r["config"]["out"])]
+    results = evaluate_many([(checkpoint(f), s) for f in folders for s in SPLITS], episodes, seed, jobs)
 
     def rates(folder: str) -> dict:
         out = {}
         for split in SPLITS:
-            res = json.loads(cached(folder, split).read_text())
+            res = results[(checkpoint(folder), split)]
             out[split] = {"success": res["success_rate"], "episodes": res["episodes"],
                           "objects": {name: o["success_rate"] for name, o in res["objects"].items()}}
         return out

@@ -3,11 +3,15 @@
     python benchmarks/rl/curriculum_table.py            # print the tables
     python benchmarks/rl/curriculum_table.py --write    # refresh them in docs/results/rl_from_experts.md and README.md
 
-Four tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
+Five tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
 
 * ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/rl/curriculum/*.json`` run
   set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success
-  from the true reset (mean ± std over the seeds, then each seed), training wall time per seed.
+  from the true reset (mean ± std over the seeds, then each seed), evaluation episodes per object, training wall
+  time per seed.
+* ``paired-eval`` (docs/results/rl_from_experts.md): each point-cloud RL run set against the students it started
+  from, both evaluated again side by side with more episodes (``benchmarks/results/rl/paired_eval.json``, written by
+  ``benchmarks/rl/paired_eval.py``): per split student -> RL and RL - student ± its standard error.
 * ``clone-capacity`` (docs/results/rl_from_experts.md): the DAgger clone of each network size from
   ``benchmarks/results/rl/curriculum/clone_capacity_*.json`` (``benchmarks/rl/clone_capacity.py``).
 * ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, each cell from its JSON
@@ -30,6 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmarks" / "results"
 DOC = ROOT / "docs" / "results" / "rl_from_experts.md"
+PAIRED = RESULTS / "rl" / "paired_eval.json"  # benchmarks/rl/paired_eval.py
 README = ROOT / "README.md"
 PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (0.81, 0.41), "toilet": (0.71, 0.46)}
 # the evidence of each headline cell: expert (solve JSONs, seen and unseen), the best committed point-cloud student,
@@ -55,7 +60,7 @@ def spread(values: list[float]) -> str:
 
 def runs_table() -> str:
     rows = ["| task | obs | recipe | seeds | online frames / seed | demo frames / seed | seen success | "
-            "unseen success | training time / seed | JSON |", "|" + "---|" * 10]
+            "unseen success | eval eps / object | training time / seed | JSON |", "|" + "---|" * 11]
     for path in sorted((RESULTS / "rl" / "curriculum").glob("*.json")):
         result = load(path)
         if "recipe" not in result or not result.get("per_seed"):
@@ -67,8 +72,26 @@ def runs_table() -> str:
         each = {name: " / ".join(f"{v:.2f}" for v in values) for name, values in (("seen", seen), ("unseen", unseen))}
         minutes = " / ".join(f"{r['wall_time_s'] / 60:.0f} min" for r in seeds)
         rows.append(f"| {result['task']} | {result['obs']} | `{result['recipe']}` | {len(seeds)} | {frames} | {demo} "
-                    f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) | {minutes} "
-                    f"| [{path.name}](../../benchmarks/results/rl/curriculum/{path.name}) |")
+                    f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) "
+                    f"| {result['eval_episodes_per_object']} | {minutes} | [{path.name}](../../benchmarks/results/rl/curriculum/{path.name}) |")
+    return "\n".join(rows)
+
+
+def paired_table() -> str:
+    """Each point-cloud RL run set against the students it started from, evaluated again side by side with more
+    episodes (benchmarks/rl/paired_eval.py): per split the seeds' mean student -> RL, RL - student ± se, each seed."""
+    result = load(PAIRED)
+    rows = [f"| task | recipe | seeds | RL frames / seed | seen: student -> RL | seen: RL - student (each seed) "
+            f"| unseen: student -> RL | unseen: RL - student (each seed) |", "|" + "---|" * 8]
+    for e in result["summary"]:
+        seeds = [r for r in result["runs"] if (r["task"], r["recipe"]) == (e["task"], e["recipe"])]
+        cells = []
+        for split in ("seen", "unseen"):
+            each = " / ".join(f"{r['delta'][split]['value']:+.2f}" for r in seeds)
+            cells.append(f"{e[split]['student']:.2f} -> {e[split]['rl']:.2f} "
+                         f"| **{e[split]['delta']:+.2f} ± {e[split]['delta_se']:.2f}** ({each})")
+        frames = " / ".join(f"{f / 1000:.0f}k" for f in e["rl_frames"])
+        rows.append(f"| {e['task']} | `{e['recipe']}` | {len(seeds)} | {frames} | {cells[0]} | {cells[1]} |")
     return "\n".join(rows)
 
 
@@ -126,7 +149,7 @@ def zoo_table() -> str:
     return "\n".join(rows)
 
 
-TABLES = {"curriculum-runs": (DOC, runs_table), "clone-capacity": (DOC, clone_table),
+TABLES = {"curriculum-runs": (DOC, runs_table), "paired-eval": (DOC, paired_table), "clone-capacity": (DOC, clone_table),
           "rl-headline": (README, headline_table), "zoo": (README, zoo_table)}
 
 

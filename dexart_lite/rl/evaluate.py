@@ -128,6 +128,38 @@ def evaluate_checkpoint(path: str | Path, split: str = "seen", episodes_per_obje
     return {**result, "checkpoint": str(path), "frames": cfg["frames"], "device": chosen.type}
 
 
+def heldout_path(checkpoint: str | Path, split: str, episodes_per_object: int, seed: int) -> Path:
+    """Where ``evaluate_many`` keeps one evaluation: next to the checkpoint, ``heldout_<split>_e<N>_seed<S>.json``."""
+    return Path(checkpoint).parent / f"heldout_{split}_e{episodes_per_object}_seed{seed}.json"
+
+
+def evaluate_many(work: list[tuple[str, str]], episodes_per_object: int, seed: int, jobs: int = 1) -> dict:
+    """``evaluate_checkpoint`` of every (checkpoint, split) in ``work`` with ``episodes_per_object`` at env seed
+    ``seed``, ``jobs`` at a time (success does not depend on timing, so evaluations may run side by side), with a
+    progress bar. Each result is cached next to its checkpoint (``heldout_path``) and read back from there by a
+    later call. Returns {(checkpoint, split): result}."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from tqdm import tqdm
+
+    work = list(dict.fromkeys((str(c), s) for c, s in work))
+    todo = [(c, s) for c, s in work if not heldout_path(c, s, episodes_per_object, seed).exists()]
+    bar = tqdm(total=len(todo), desc="evaluations", unit="eval", disable=not todo)
+    if jobs <= 1:
+        for c, s in todo:
+            write_json(heldout_path(c, s, episodes_per_object, seed), evaluate_checkpoint(c, s, episodes_per_object, seed))
+            bar.update()
+    else:  # spawned workers: pybullet and torch do not survive a fork of a busy parent
+        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = {pool.submit(evaluate_checkpoint, c, s, episodes_per_object, seed): (c, s) for c, s in todo}
+            for future in as_completed(futures):
+                write_json(heldout_path(*futures[future], episodes_per_object, seed), future.result())
+                bar.update()
+    bar.close()
+    return {(c, s): json.loads(heldout_path(c, s, episodes_per_object, seed).read_text()) for c, s in work}
+
+
 def run(args: argparse.Namespace) -> int:
     result = evaluate_checkpoint(args.ckpt, args.split, args.episodes_per_object, args.seed, args.device)
     print(f"{result['task']} {args.split}: {result['frames']} training frames, {result['episodes']} episodes, "

@@ -80,6 +80,8 @@ def runs_table() -> str:
 def paired_table() -> str:
     """Each point-cloud RL run set against the students it started from, evaluated again side by side with more
     episodes (benchmarks/rl/paired_eval.py): per split the seeds' mean student -> RL, RL - student ± se, each seed."""
+    if not PAIRED.exists():
+        return "Not measured yet: `python benchmarks/rl/paired_eval.py --jobs 2` (needs the runs' checkpoints)."
     result = load(PAIRED)
     rows = [f"| task | recipe | seeds | RL frames / seed | seen: student -> RL | seen: RL - student (each seed) "
             f"| unseen: student -> RL | unseen: RL - student (each seed) |", "|" + "---|" * 8]

@@ -55,3 +55,25 @@ def test_unknown_run_sets_and_missing_checkpoints_are_named(tmp_path, load_bench
         bench.checkpoints(run_set, tmp_path / "runs")
     with pytest.raises(ValueError, match="--episodes must be >= 1"):
         bench.main(["--episodes", "0"])
+
+
+def test_evaluate_many_evaluates_each_pair_once_and_reads_the_cache_back(tmp_path, monkeypatch):
+    """Duplicate (checkpoint, split) pairs are evaluated once; each result is cached next to its checkpoint, named by
+    split, episodes and seed, and a second call evaluates nothing."""
+    from dexart_lite.rl import evaluate
+
+    calls = []
+
+    def fake(path, split, episodes, seed):
+        calls.append((path, split))
+        return {"checkpoint": path, "split": split, "episodes_per_object": episodes, "seed": seed}
+
+    monkeypatch.setattr(evaluate, "evaluate_checkpoint", fake)
+    a, b = str(tmp_path / "a" / "checkpoint.pt"), str(tmp_path / "b" / "checkpoint.pt")
+    work = [(a, "seen"), (b, "seen"), (a, "seen"), (a, "unseen")]
+    first = evaluate.evaluate_many(work, 7, 1000)
+    assert sorted(calls) == sorted({*work}) and len(first) == 3
+    assert first[(a, "unseen")]["split"] == "unseen" and (tmp_path / "a" / "heldout_unseen_e7_seed1000.json").exists()
+    assert evaluate.evaluate_many(work, 7, 1000) == first and len(calls) == 3  # all read back
+    evaluate.evaluate_many([(a, "seen")], 7, 1001)  # another seed is another evaluation
+    assert len(calls) == 4

@@ -125,6 +125,20 @@ def rl_cell(name: str | None) -> str:
             f"(`{rl['recipe']}`, {rl['frames'] / 1000:.0f}k frames, {len(rl['per_seed'])} seeds)")
 
 
+def cloud_rl_cell(name: str | None) -> str:
+    """The point-cloud RL cell: its paired re-evaluation beside the students it started from where there is one
+    (``paired_eval.json``, more episodes per object than the run's own evaluation), else ``rl_cell``."""
+    rl = load(RESULTS / "rl" / "curriculum" / name) if name else None
+    paired = load(PAIRED) if PAIRED.exists() else {"summary": []}
+    entry = next((e for e in paired["summary"] if rl and (e["task"], e["recipe"]) == (rl["task"], rl["recipe"])), None)
+    if entry is None:
+        return rl_cell(name)
+    frames = np.mean(entry["rl_frames"])
+    return (f"[{entry['seen']['rl']:.2f} / {entry['unseen']['rl']:.2f}](benchmarks/results/rl/paired_eval.json) "
+            f"from students at {entry['seen']['student']:.2f} / {entry['unseen']['student']:.2f} (`{rl['recipe']}`, "
+            f"{frames / 1000:.0f}k frames, {len(entry['seeds'])} seeds, {paired['episodes_per_object']} eps per object)")
+
+
 def headline_table() -> str:
     rows = ["| task | scripted expert (privileged) | distilled point-cloud student | RL on point clouds | "
             "RL on the state (diagnostic) | DexArt Table 2 (RL, no pretraining) |", "|---|---|---|---|---|---|"]
@@ -133,7 +147,7 @@ def headline_table() -> str:
         student = load(RESULTS / "students" / cells["student"])
         rows.append(f"| {task} | [{expert[0]:.2f} / {expert[1]:.2f}](benchmarks/results/experts/solve_{task}_seen.json) "
                     f"| [{student['seen_success']:.2f} / {student['unseen_success']:.2f}](benchmarks/results/students/{cells['student']}) "
-                    f"| {rl_cell(cells['rl'])} | {rl_cell(cells['rl_state'])} "
+                    f"| {cloud_rl_cell(cells['rl'])} | {rl_cell(cells['rl_state'])} "
                     f"| {PAPER_NO_PRETRAIN[task][0]:.2f} / {PAPER_NO_PRETRAIN[task][1]:.2f} |")
     return "\n".join(rows)
 

@@ -77,3 +77,21 @@ def test_evaluate_many_evaluates_each_pair_once_and_reads_the_cache_back(tmp_pat
     assert evaluate.evaluate_many(work, 7, 1000) == first and len(calls) == 3  # all read back
     evaluate.evaluate_many([(a, "seen")], 7, 1001)  # another seed is another evaluation
     assert len(calls) == 4
+
+
+def test_return_vs_success_splits_returns_and_terms_by_outcome(load_benchmark):
+    """benchmarks/rl/return_vs_success.py's summary: means over all episodes, the successes and the failures, worked
+    by hand for three episodes."""
+    bench = load_benchmark("return_vs_success")
+    episodes = [
+        {"success": True, "return": 300.0, "success_step": 80, "q": 1.9, "terms": {"contact": 10.0, "bonus": 290.0}},
+        {"success": True, "return": 200.0, "success_step": 120, "q": 1.6, "terms": {"contact": 20.0, "bonus": 180.0}},
+        {"success": False, "return": 40.0, "success_step": None, "q": None, "terms": {"contact": 40.0, "bonus": 0.0}}]
+    row = bench.summary("p", episodes, "ckpt.pt", 100)
+    assert row["success_rate"] == pytest.approx(2 / 3) and row["mean_return"] == pytest.approx(180.0)
+    assert row["mean_return_success"] == 250.0 and row["mean_return_failure"] == 40.0
+    assert row["mean_success_step"] == 100.0 and row["mean_q_at_success"] == pytest.approx(1.75)
+    assert row["mean_bonus"] == 235.0 and row["terms"]["failure"] == {"contact": 40.0, "bonus": 0.0}
+    assert row["terms"]["all"]["contact"] == pytest.approx(70 / 3)
+    # no failures: their means are None, not NaN
+    assert bench.summary("p", episodes[:1])["mean_return_failure"] is None

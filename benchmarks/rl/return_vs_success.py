@@ -1,0 +1,117 @@
+"""Does the return follow success? The reward terms of successful and failed episodes, trained policies beside the expert.
+
+    python benchmarks/rl/return_vs_success.py --task faucet \
+        --policy runs/curriculum/faucet_state_dagger_wide_s0/checkpoint.pt runs/curriculum/faucet_state_dagger_wide_s1/checkpoint.pt \
+        --json benchmarks/results/rl/return_vs_success_faucet.json
+
+Why: PPO maximises the return, and the benchmark counts success. DexArt's reward pays, on an early success, a
+terminal bonus of (horizon - t) * 1.2 * progress (progress: the part's |q| at that step, rad), so a policy can raise
+its return by succeeding sooner or by flinging the part further in the step it succeeds, even if it then succeeds
+less often. This script runs the scripted expert (with ``--expert-noise``, the demonstrations' executed-action noise,
+so that it behaves like the clone PPO started from) and each checkpoint (deterministic, as evaluation) on the same
+resets (``experts.solve.solve_episodes``: ``--episodes-per-object`` per object of ``--split``, from ``--seed``) and
+records per episode: success, steps, the step of the first success, the part's |q| then, the return and the sum of
+each named reward term.
+
+Written to ``--json``: task, split, episodes_per_object, seed, expert_noise, policies (per policy: label, checkpoint,
+frames, success_rate, mean_return, mean_return_success, mean_return_failure, mean_success_step, mean_q_at_success,
+mean_bonus, terms: mean sum per episode of each reward term, and of the successes' and failures' alone), command,
+machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from dexart_lite.envs import make
+from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.experts.solve import solve_episodes
+from dexart_lite.registration import TASKS
+from dexart_lite.rl.checkpoint import policy_function
+from dexart_lite.rl.evaluate import load_policy
+from dexart_lite.rollout import noisy, run_episodes
+from dexart_lite.utils import check_choice, fast_mode, provenance, write_json
+
+
+def episodes_of(policy, env, resets: list[tuple[int, str]]) -> list[dict]:
+    """``run_episodes`` of ``policy`` with, per episode, the sum of each reward term and the step (and |q|) of the
+    first success."""
+    extra: list[dict] = []
+
+    def on_reset(obs, info):
+        extra.append({"terms": dict.fromkeys(info.get("reward_terms", {}), 0.0), "success_step": None, "q": None})
+
+    def on_step(obs, action, reward, next_obs, info, t):
+        row = extra[-1]
+        for name, value in info["reward_terms"].items():
+            row["terms"][name] = row["terms"].get(name, 0.0) + float(value)
+        if info["success"] and row["success_step"] is None:
+            row["success_step"], row["q"] = t + 1, abs(float(env.unwrapped.state.q))
+
+    results = run_episodes(policy, env, resets, on_step=on_step, on_reset=on_reset, progress=not fast_mode())
+    return [{**r, **e} for r, e in zip(results, extra)]
+
+
+def summary(label: str, episodes: list[dict], checkpoint: str | None = None, frames: int | None = None) -> dict:
+    """The means of ``episodes_of``'s rows (None where no episode qualifies)."""
+    mean = lambda values: float(np.mean(values)) if len(values) else None  # noqa: E731
+    wins, losses = [e for e in episodes if e["success"]], [e for e in episodes if not e["success"]]
+    names = list(dict.fromkeys(n for e in episodes for n in e["terms"]))
+    terms = {group: {n: mean([e["terms"].get(n, 0.0) for e in rows]) for n in names}
+             for group, rows in (("all", episodes), ("success", wins), ("failure", losses))}
+    return {"label": label, "checkpoint": checkpoint, "frames": frames, "episodes": len(episodes),
+            "success_rate": mean([e["success"] for e in episodes]),
+            "mean_return": mean([e["return"] for e in episodes]),
+            "mean_return_success": mean([e["return"] for e in wins]),
+            "mean_return_failure": mean([e["return"] for e in losses]),
+            "mean_success_step": mean([e["success_step"] for e in wins]),
+            "mean_q_at_success": mean([e["q"] for e in wins]),
+            "mean_bonus": mean([e["terms"].get("bonus", 0.0) for e in wins]), "terms": terms}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="faucet", help=f"one of {', '.join(TASKS)}")
+    parser.add_argument("--policy", nargs="*", default=[], help="checkpoints to compare with the expert")
+    parser.add_argument("--split", default="seen")
+    parser.add_argument("--episodes-per-object", type=int, default=5)
+    parser.add_argument("--seed", type=int, default=1000, help="reset seeds: solve_episodes(seed)")
+    parser.add_argument("--expert-noise", type=float, default=0.1, help="the expert's executed-action noise std")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+    check_choice("task", args.task, TASKS)
+    loaded = [(path, *load_policy(path)) for path in args.policy]
+    for path, _, cfg, _ in loaded:
+        if cfg["task"] != args.task:
+            raise ValueError(f"{path} was trained on {cfg['task']}, not {args.task}")
+    env_kwargs = loaded[0][3] if loaded else {}
+    env = make(args.task, split=args.split, point_noise=True, camera_noise=True, **env_kwargs)
+    names = env.unwrapped.objects.names[:1] if fast_mode() else env.unwrapped.objects.names
+    resets = solve_episodes(names, 1 if fast_mode() else args.episodes_per_object, args.seed)
+    expert = noisy(ScriptedPolicy(env), args.expert_noise, np.random.default_rng(args.seed))
+    rows = [summary(f"expert (noise {args.expert_noise:g})", episodes_of(expert, env, resets))]
+    for path, actor_critic, cfg, kwargs in loaded:
+        if kwargs != env_kwargs:
+            raise ValueError(f"{path} observes {kwargs}, the first policy {env_kwargs}: compare one observation at a time")
+        rows.append(summary(Path(path).parent.name, episodes_of(
+            policy_function(actor_critic), env, resets), path, cfg["frames"]))
+    env.close()
+    result = {"task": args.task, "split": args.split, "episodes_per_object": len(resets) // len(names),
+              "seed": args.seed, "expert_noise": args.expert_noise, "policies": rows, **provenance(__file__, argv)}
+    print("| policy | frames | success | return | return of successes | of failures | success step | |q| then | bonus |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    fmt = lambda v, f=".2f": "-" if v is None else format(v, f)  # noqa: E731
+    for r in rows:
+        print(f"| {r['label']} | {r['frames'] or '-'} | {fmt(r['success_rate'])} | {fmt(r['mean_return'], '.0f')} "
+              f"| {fmt(r['mean_return_success'], '.0f')} | {fmt(r['mean_return_failure'], '.0f')} "
+              f"| {fmt(r['mean_success_step'], '.0f')} | {fmt(r['mean_q_at_success'])} | {fmt(r['mean_bonus'], '.0f')} |")
+    if args.json:
+        write_json(args.json, result)
+    return result
+
+
+if __name__ == "__main__":
+    main()

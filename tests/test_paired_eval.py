@@ -95,3 +95,16 @@ def test_return_vs_success_splits_returns_and_terms_by_outcome(load_benchmark):
     assert row["terms"]["all"]["contact"] == pytest.approx(70 / 3)
     # no failures: their means are None, not NaN
     assert bench.summary("p", episodes[:1])["mean_return_failure"] is None
+
+
+def test_return_vs_success_writes_the_fields_it_documents(tmp_path, load_benchmark):
+    """Fast mode: the expert alone on one object, one episode; a checkpoint of another task is refused."""
+    bench = load_benchmark("return_vs_success")
+    path = tmp_path / "r.json"
+    result = bench.main(["--task", "faucet", "--json", str(path)])
+    assert json.loads(path.read_text()) == json.loads(json.dumps(result))
+    row, = result["policies"]
+    assert row["episodes"] == 1 and {"command", "machine", "expert_noise", "split"} <= result.keys()
+    assert set(row["terms"]["all"]) >= {"reach", "contact", "bonus"}
+    with pytest.raises(ValueError, match="task"):
+        bench.main(["--task", "sink"])

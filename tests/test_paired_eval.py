@@ -3,6 +3,7 @@ and its clear errors (the evaluations themselves are ``rl.evaluate``'s, tested i
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 
@@ -77,6 +78,13 @@ def test_evaluate_many_evaluates_each_pair_once_and_reads_the_cache_back(tmp_pat
     assert evaluate.evaluate_many(work, 7, 1000) == first and len(calls) == 3  # all read back
     evaluate.evaluate_many([(a, "seen")], 7, 1001)  # another seed is another evaluation
     assert len(calls) == 4
+    # a checkpoint written after its cache (the run trained on) is evaluated again
+    import os
+    Path(b).write_bytes(b"newer")
+    cache = tmp_path / "b" / "heldout_seen_e7_seed1000.json"
+    os.utime(cache, (1, 1))
+    evaluate.evaluate_many([(b, "seen"), (a, "seen")], 7, 1000)
+    assert calls[4:] == [(b, "seen")]
 
 
 def test_return_vs_success_splits_returns_and_terms_by_outcome(load_benchmark):

@@ -137,14 +137,18 @@ def evaluate_many(work: list[tuple[str, str]], episodes_per_object: int, seed: i
     """``evaluate_checkpoint`` of every (checkpoint, split) in ``work`` with ``episodes_per_object`` at env seed
     ``seed``, ``jobs`` at a time (success does not depend on timing, so evaluations may run side by side), with a
     progress bar. Each result is cached next to its checkpoint (``heldout_path``) and read back from there by a
-    later call. Returns {(checkpoint, split): result}."""
+    later call, unless the checkpoint is newer than it. Returns {(checkpoint, split): result}."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from tqdm import tqdm
 
     work = list(dict.fromkeys((str(c), s) for c, s in work))
-    todo = [(c, s) for c, s in work if not heldout_path(c, s, episodes_per_object, seed).exists()]
+    def cached(c: str, s: str) -> bool:  # a cache older than its checkpoint (trained on since) is evaluated again
+        cache, checkpoint = heldout_path(c, s, episodes_per_object, seed), Path(c)
+        return cache.exists() and not (checkpoint.exists() and checkpoint.stat().st_mtime > cache.stat().st_mtime)
+
+    todo = [(c, s) for c, s in work if not cached(c, s)]
     bar = tqdm(total=len(todo), desc="evaluations", unit="eval", disable=not todo)
     if jobs <= 1:
         for c, s in todo:

@@ -8,8 +8,11 @@ seed and split, as large as any change RL made. Here, for every committed RL run
 student (``benchmarks/results/rl/curriculum/<task>_cloud_<recipe>.json`` with a ``student`` entry) and each of its
 seeds, the RL policy (``runs/curriculum/<task>_cloud_<recipe>_s<seed>/checkpoint.pt``) and the student it started
 from (the checkpoint its config's ``init_from`` names) are evaluated as ``dexart-lite eval`` does: deterministic
-actions from the true reset, ``--episodes`` per seen and unseen object, env seed 100 for both. The checkpoints are
-not in git (``runs/`` is untracked): the script needs the runs on this machine and names any that are missing.
+actions from the true reset, ``--episodes`` per seen and unseen object, both at env seed 1000, a held-out seed (the
+runs' own evaluations, which chose recipes and zoo entries, use 100). Each evaluation is cached next to its checkpoint
+(``heldout_<split>_e<N>_seed<S>.json``, through ``rl.evaluate.evaluate_many``, as ``bench_finetune.py
+--heldout-episodes`` does) and read back by a later call. The checkpoints are not in git (``runs/`` is untracked):
+the script needs the runs on this machine and names any that are missing.
 
 Standard errors are stratified by object, since every object gets the same k episodes:
 se = sqrt(sum_o p_o (1 - p_o) / k) / n_objects; a difference's se adds the two in quadrature (independent episodes);

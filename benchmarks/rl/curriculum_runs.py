@@ -81,6 +81,11 @@ RECIPES = {
     # clone it starts from opens 0.55 / 0.56 of the laptops instead of 0.05 / 0.08
     # (benchmarks/results/rl/curriculum/clone_capacity_laptop_state.json)
     "dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE},
+    # dagger_wide_capped: dagger_wide on reward="capped" (envs/rewards.py; not DexArt's): the terminal bonus stops
+    # counting at the success threshold, so a success is not worth more for flinging the handle further; on the
+    # faucet, DexArt's bonus lets PPO trade reliability for bigger, earlier successes at equal return
+    # (benchmarks/results/rl/return_vs_success_faucet.json)
+    "dagger_wide_capped": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "reward": "capped"},
     "reverse_dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "curriculum": "reverse",
                             "curriculum_demos": 11, "curriculum_step": 5},
     # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of

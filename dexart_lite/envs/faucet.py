@@ -14,7 +14,7 @@ Reward terms (``info["reward_terms"]``; the reward is their sum):
     contact      stages 2-3: +0.2 while grasping (palm + >= 2 fingers on the handle)
     arm_contact  stages 2-3: -0.1 per arm link touching the faucet
     progress     stage 3: +1.0 * |q|
-    bonus        on success: (horizon - t) * 1.2 * |q|
+    bonus        on success: (horizon - t) * 1.2 * |q|  (reward="capped": |q| counted up to 1.5 rad)
     penalty      -0.01 * (action penalty + control penalty), every step
 Stages: 1 reach (dist > 0.2 m), 2 contact (close, not grasping), 3 manipulate (grasping).
 """
@@ -57,6 +57,6 @@ class FaucetEnv(DexArtEnv):
             "contact": rewards.CONTACT_BONUS * self.grasped(s) if stage >= 2 else 0.0,
             "arm_contact": -rewards.ARM_CONTACT_COST * s.arm_contacts if stage >= 2 else 0.0,
             "progress": progress if stage == 3 else 0.0,
-            "bonus": rewards.terminal_bonus(s, progress) if success else 0.0,
+            "bonus": self.bonus(s, progress, SUCCESS_ANGLE) if success else 0.0,
             "penalty": rewards.penalty(s, PENALTY_WEIGHT),
         }

@@ -16,7 +16,7 @@ Reward terms (``info["reward_terms"]``; the reward is their sum):
     contact      stages 2-3: +0.2 while grasping
     arm_contact  stages 2-3: -0.1 per arm link touching the laptop
     progress     stage 3: +1.0 * progress; stages 1-2: +0.5 * progress when progress < 0 (closing)
-    bonus        on success: (horizon - t) * 1.2 * progress
+    bonus        on success: (horizon - t) * 1.2 * progress  (reward="capped": counted up to 0.95)
     penalty      -0.01 * (action penalty + control penalty), every step
 Stages: 1 reach (dist > 0.2 m), 2 contact (close, not grasping), 3 manipulate (grasping).
 """
@@ -70,6 +70,6 @@ class LaptopEnv(DexArtEnv):
             "contact": rewards.CONTACT_BONUS * self.grasped(s) if stage >= 2 else 0.0,
             "arm_contact": -rewards.ARM_CONTACT_COST * s.arm_contacts if stage >= 2 else 0.0,
             "progress": progress_term,
-            "bonus": rewards.terminal_bonus(s, progress) if success else 0.0,
+            "bonus": self.bonus(s, progress, self.SPEC.success["progress"]) if success else 0.0,
             "penalty": rewards.penalty(s, self.PENALTY_WEIGHT),
         }

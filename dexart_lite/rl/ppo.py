@@ -91,8 +91,9 @@ class PPOConfig:
                      "(--encoder is then unused); it measures how learnable a task's reward is apart from perception"})
     head: str = field(default="64,64", metadata={"help": "hidden widths of the policy and value MLPs (DexArt: 64,64)"})
     state_hidden: int = field(default=64, metadata={"help": "width of the trunk's state MLP (DexArt: 64)"})
-    reward: str = field(default="dexart", metadata={"help": "dexart, or shaped: plus stage-2 terms toward the grasp "
-                        "(envs.rewards.shaping; not DexArt's); evaluation reports success either way"})
+    reward: str = field(default="dexart", metadata={"help": "dexart; shaped: plus stage-2 terms toward the grasp "
+                        "(envs.rewards.shaping; not DexArt's); capped: the terminal bonus counts progress up to the "
+                        "success threshold only (not DexArt's); evaluation reports success either way"})
     hand: str = field(default="joints", metadata={"help": "joints (DexArt: 16 hand joint targets, a 22-D action) or "
                       "synergy: 3 numbers close knuckles, finger curl and thumb (robot.synergy_targets; a 9-D action, "
                       "not DexArt's)"})

@@ -113,6 +113,8 @@ def test_return_vs_success_writes_the_fields_it_documents(tmp_path, load_benchma
     assert json.loads(path.read_text()) == json.loads(json.dumps(result))
     row, = result["policies"]
     assert row["episodes"] == 1 and {"command", "machine", "expert_noise", "split"} <= result.keys()
-    assert set(row["terms"]["all"]) >= {"reach", "contact", "bonus"}
+    assert result["reward"] == "dexart" and set(row["terms"]["all"]) >= {"reach", "contact", "bonus"}
     with pytest.raises(ValueError, match="task"):
         bench.main(["--task", "sink"])
+    with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped, capped"):
+        bench.main(["--task", "faucet", "--reward", "dense"])

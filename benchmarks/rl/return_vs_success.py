@@ -11,9 +11,11 @@ less often. This script runs the scripted expert (with ``--expert-noise``, the d
 so that it behaves like the clone PPO started from) and each checkpoint (deterministic, as evaluation) on the same
 resets (``experts.solve.solve_episodes``: ``--episodes-per-object`` per object of ``--split``, from ``--seed``) and
 records per episode: success, steps, the step of the first success, the part's |q| then, the return and the sum of
-each named reward term.
+each named reward term. ``--reward`` names the reward every run is scored on (default DexArt's; ``capped``: the
+terminal bonus counted up to the success threshold, envs/rewards.py), whatever reward a policy trained on: the reward
+does not change what a policy observes, so policies trained on either compare on the same resets.
 
-Written to ``--json``: task, split, episodes_per_object, seed, expert_noise, policies (per policy: label, checkpoint,
+Written to ``--json``: task, split, reward, episodes_per_object, seed, expert_noise, policies (per policy: label, checkpoint,
 frames, success_rate, mean_return, mean_return_success, mean_return_failure, mean_success_step, mean_q_at_success,
 mean_bonus, terms: mean sum per episode of each reward term, and of the successes' and failures' alone), command,
 machine.
@@ -27,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from dexart_lite.envs import make
+from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
 from dexart_lite.registration import TASKS
@@ -80,15 +83,20 @@ def main(argv=None) -> dict:
     parser.add_argument("--episodes-per-object", type=int, default=5)
     parser.add_argument("--seed", type=int, default=1000, help="reset seeds: solve_episodes(seed)")
     parser.add_argument("--expert-noise", type=float, default=0.1, help="the expert's executed-action noise std")
+    parser.add_argument("--reward", default="dexart", help=f"the reward the episodes are scored on: one of "
+                        f"{', '.join(REWARD_MODES)}")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     check_choice("task", args.task, TASKS)
-    loaded = [(path, *load_policy(path)) for path in args.policy]
+    check_choice("reward", args.reward, REWARD_MODES)
+    # the env each policy observes, without the reward it trained on (every run here is scored on --reward)
+    loaded = [(path, actor_critic, cfg, {k: v for k, v in kwargs.items() if k != "reward"})
+              for path, actor_critic, cfg, kwargs in (load_policy(path) for path in args.policy)]
     for path, _, cfg, _ in loaded:
         if cfg["task"] != args.task:
             raise ValueError(f"{path} was trained on {cfg['task']}, not {args.task}")
     env_kwargs = loaded[0][3] if loaded else {}
-    env = make(args.task, split=args.split, point_noise=True, camera_noise=True, **env_kwargs)
+    env = make(args.task, split=args.split, point_noise=True, camera_noise=True, reward=args.reward, **env_kwargs)
     names = env.unwrapped.objects.names[:1] if fast_mode() else env.unwrapped.objects.names
     resets = solve_episodes(names, 1 if fast_mode() else args.episodes_per_object, args.seed)
     expert = noisy(ScriptedPolicy(env), args.expert_noise, np.random.default_rng(args.seed))
@@ -99,7 +107,7 @@ def main(argv=None) -> dict:
         rows.append(summary(Path(path).parent.name, episodes_of(
             policy_function(actor_critic), env, resets), path, cfg["frames"]))
     env.close()
-    result = {"task": args.task, "split": args.split, "episodes_per_object": len(resets) // len(names),
+    result = {"task": args.task, "split": args.split, "reward": args.reward, "episodes_per_object": len(resets) // len(names),
               "seed": args.seed, "expert_noise": args.expert_noise, "policies": rows, **provenance(__file__, argv)}
     print("| policy | frames | success | return | return of successes | of failures | success step | |q| then | bonus |")
     print("|---|---|---|---|---|---|---|---|---|")

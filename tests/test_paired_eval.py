@@ -118,3 +118,30 @@ def test_return_vs_success_writes_the_fields_it_documents(tmp_path, load_benchma
         bench.main(["--task", "sink"])
     with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped, capped"):
         bench.main(["--task", "faucet", "--reward", "dense"])
+
+
+def test_curve_compare_averages_each_frame_window_by_hand(tmp_path, load_benchmark):
+    """benchmarks/rl/curve_compare.py: window means over the batches with lo < frames <= hi (NaN and missing
+    values skipped, None for an empty window), seeds pooled and apart; a run without a key is refused by name."""
+    bench = load_benchmark("curve_compare")
+    curve = lambda pairs: [{"frames": f, "success_rate": s, "bc_weight": 1.0} for f, s in pairs]  # noqa: E731
+    result = {"task": "faucet", "obs": "state", "recipe": "r", "settings": {"reward": "capped"},
+              "per_seed": [{"seed": 0, "curve": curve([(100, 1.0), (200, 0.5), (300, float("nan")), (400, 0.0)])},
+                           {"seed": 1, "curve": curve([(100, 0.0), (200, 0.5), (400, 1.0)])}]}
+    path = tmp_path / "faucet_state_r.json"
+    path.write_text(json.dumps(result))
+    out = bench.main([str(path), "--keys", "success_rate", "--windows", "0", "200", "400", "1000",
+                      "--png", str(tmp_path / "c.png"), "--json", str(tmp_path / "c.json")])
+    rows = {(r["seed"], r["window"]): r["success_rate"] for r in out["table"]}
+    assert rows[("all", "0-200")] == pytest.approx((1.0 + 0.5 + 0.0 + 0.5) / 4)  # frames 100, 200 of both seeds
+    assert rows[(0, "0-200")] == 0.75 and rows[(1, "0-200")] == 0.25
+    assert rows[(0, "200-400")] == 0.0 and rows[(1, "200-400")] == 1.0  # frame 300's NaN skipped, 400 kept
+    assert rows[("all", "200-400")] == 0.5 and rows[("all", "400-1k")] is None
+    out = bench.main([str(path), "--keys", "success_rate", "--windows", "0", "400", "1000"])
+    assert [r["success_rate"] for r in out["table"] if r["seed"] == "all"] == [0.5, None]
+    assert out["runs"][0]["reward"] == "capped" and (tmp_path / "c.png").stat().st_size > 0
+    assert json.loads((tmp_path / "c.json").read_text())["keys"] == ["success_rate"]
+    with pytest.raises(ValueError, match=r"no curve field \['episode_return'\]"):
+        bench.main([str(path), "--keys", "episode_return"])
+    with pytest.raises(ValueError, match="increasing"):
+        bench.main([str(path), "--windows", "300", "0"])

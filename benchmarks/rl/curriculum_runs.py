@@ -113,8 +113,9 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
-# the planned update the KL stop let through, the BC term's weight
-CURVE_KEYS = ("frames", "success_rate", "success_h0", "success_frontier", "frontier_mean", "start_mean",
+# the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's
+# own reward) and length
+CURVE_KEYS = ("frames", "success_rate", "episode_return", "episode_length", "success_h0", "success_frontier", "frontier_mean", "start_mean",
               "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
               "update_steps_frac", "bc_weight", "anchor_weight", "kl_init", "wall_s")
 

@@ -369,3 +369,26 @@ def test_an_init_from_policy_drives_the_dagger_rounds_and_keeps_its_weights(tmp_
     assert len(learner.bc_data) == learner.demos["frames"] and objects <= driven <= objects * HORIZON
     with pytest.raises(ValueError, match="drop --bc-warmstart"):
         ppo.validate(dataclasses.replace(cfg, bc_warmstart=3))
+
+
+def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_ones_train_on_the_capped_reward(load_benchmark):
+    """Each recipe of benchmarks/rl/curriculum_runs.py is a config its learner accepts (validate raises on a bad
+    field); the *_capped recipes differ from their DexArt-reward twins in the reward alone."""
+    from argparse import Namespace
+
+    from dexart_lite.rl import ppo, sac
+
+    bench = load_benchmark("curriculum_runs")
+    args = Namespace(eval_episodes=1, max_minutes=None, jobs=1, runs="runs/curriculum")
+    configs = {}
+    for recipe in bench.RECIPES:
+        obs = "cloud" if bench.RECIPES[recipe].get("student") else "state"
+        cfg = bench.config("faucet", obs, recipe, 0, 400, args)
+        (sac if isinstance(cfg, sac.SACConfig) else ppo).validate(cfg)
+        configs[recipe] = cfg
+    assert configs["ppo"].reward == "dexart"
+    for capped, twin in (("dagger_wide_capped", "dagger_wide"),
+                         ("student_anchored_release_capped", "student_anchored_release")):
+        a, b = dataclasses.asdict(configs[capped]), dataclasses.asdict(configs[twin])
+        assert a["reward"] == "capped" and b["reward"] == "dexart"
+        assert {k for k in a if a[k] != b[k]} == {"reward", "out"}

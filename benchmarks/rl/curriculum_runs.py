@@ -105,6 +105,9 @@ RECIPES = {
     # frames, after the critic warm-up, a tenth after ~45): does PPO climb above the student or fall from it
     # once the KL to it no longer holds it?
     "student_anchored_release": {**ANCHORED, "anchor_decay": 0.95},
+    # anchored_release_capped: the same on reward="capped" (not DexArt's; see dagger_wide_capped): once the anchor is
+    # let go, the faucet's uncapped bonus would pay PPO for flinging the handle past the success angle
+    "student_anchored_release_capped": {**ANCHORED, "anchor_decay": 0.95, "reward": "capped"},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }

@@ -145,3 +145,22 @@ def test_curve_compare_averages_each_frame_window_by_hand(tmp_path, load_benchma
         bench.main([str(path), "--keys", "episode_return"])
     with pytest.raises(ValueError, match="increasing"):
         bench.main([str(path), "--windows", "300", "0"])
+
+
+def test_return_vs_success_scores_a_policy_on_the_reward_asked_whatever_it_trained_on(tmp_path, load_benchmark):
+    """A tiny state policy trained on reward="capped" runs beside the expert on the same resets, scored on DexArt's
+    reward (``--reward dexart``): its row names its checkpoint and frames."""
+    import dataclasses
+
+    from dexart_lite.rl import ppo
+
+    cfg = dataclasses.replace(ppo.PPOConfig(), task="faucet", obs="state", reward="capped", frames=200,
+                              frames_per_batch=100, minibatch=100, epochs=1, max_episode_steps=20, eval_episodes=1,
+                              workers=0, progress=False, out=str(tmp_path / "run"))
+    ppo.train(cfg)
+    checkpoint = str(tmp_path / "run" / ppo.CHECKPOINT)
+    result = load_benchmark("return_vs_success").main(["--task", "faucet", "--policy", checkpoint,
+                                                       "--reward", "dexart"])
+    expert, policy = result["policies"]
+    assert result["reward"] == "dexart" and policy["checkpoint"] == checkpoint and policy["frames"] == 200
+    assert policy["episodes"] == expert["episodes"] == 1

@@ -91,7 +91,7 @@ def main(argv=None) -> dict:
     check_choice("reward", args.reward, REWARD_MODES)
     # the env each policy observes, without the reward it trained on (every run here is scored on --reward)
     loaded = [(path, actor_critic, cfg, {k: v for k, v in kwargs.items() if k != "reward"})
-              for path, actor_critic, cfg, kwargs in (load_policy(path) for path in args.policy)]
+              for path, (actor_critic, cfg, kwargs) in ((p, load_policy(p)) for p in args.policy)]
     for path, _, cfg, _ in loaded:
         if cfg["task"] != args.task:
             raise ValueError(f"{path} was trained on {cfg['task']}, not {args.task}")

@@ -81,11 +81,6 @@ RECIPES = {
     # clone it starts from opens 0.55 / 0.56 of the laptops instead of 0.05 / 0.08
     # (benchmarks/results/rl/curriculum/clone_capacity_laptop_state.json)
     "dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE},
-    # dagger_wide_capped: dagger_wide on reward="capped" (envs/rewards.py; not DexArt's): the terminal bonus stops
-    # counting at the success threshold, so a success is not worth more for flinging the handle further; on the
-    # faucet, DexArt's bonus lets PPO trade reliability for bigger, earlier successes at equal return
-    # (benchmarks/results/rl/return_vs_success_faucet.json)
-    "dagger_wide_capped": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "reward": "capped"},
     "reverse_dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "curriculum": "reverse",
                             "curriculum_demos": 11, "curriculum_step": 5},
     # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of
@@ -105,12 +100,15 @@ RECIPES = {
     # frames, after the critic warm-up, a tenth after ~45): does PPO climb above the student or fall from it
     # once the KL to it no longer holds it?
     "student_anchored_release": {**ANCHORED, "anchor_decay": 0.95},
-    # anchored_release_capped: the same on reward="capped" (not DexArt's; see dagger_wide_capped): once the anchor is
-    # let go, the faucet's uncapped bonus would pay PPO for flinging the handle past the success angle
-    "student_anchored_release_capped": {**ANCHORED, "anchor_decay": 0.95, "reward": "capped"},
     "sac_demos": {"algo": "sac"},
     "sac_reverse": {"algo": "sac", "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
 }
+# <recipe>_capped: the recipe on reward="capped" (envs/rewards.py; not DexArt's), nothing else changed: the terminal
+# bonus stops counting at the success threshold, so a success is not worth more for flinging the handle further; on
+# the faucet, DexArt's bonus lets PPO trade reliability for bigger, earlier successes at equal return
+# (benchmarks/results/rl/return_vs_success_faucet.json), and once an anchor is let go nothing else holds it back
+for _name in ("dagger_wide", "student_anchored_release"):
+    RECIPES[f"{_name}_capped"] = {**RECIPES[_name], "reward": "capped"}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
@@ -118,8 +116,8 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's
 # own reward) and length
-CURVE_KEYS = ("frames", "success_rate", "episode_return", "episode_length", "success_h0", "success_frontier", "frontier_mean", "start_mean",
-              "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
+CURVE_KEYS = ("frames", "success_rate", "episode_return", "episode_length", "success_h0", "success_frontier",
+              "frontier_mean", "start_mean", "stage1_frac", "stage2_frac", "stage3_frac", "value_error_h0", "value_error_guided",
               "update_steps_frac", "bc_weight", "anchor_weight", "kl_init", "wall_s")
 
 

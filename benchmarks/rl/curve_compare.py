@@ -44,7 +44,7 @@ def window_means(curve: list[dict], keys, windows: list[tuple[int, int]]) -> lis
         inside = [c for c in curve if lo < c["frames"] <= hi]
         row = {"window": f"{frames_label(lo)}-{frames_label(hi)}"}
         for key in keys:
-            values = [c.get(key) for c in inside if c.get(key) is not None and math.isfinite(c.get(key))]
+            values = [v for v in (c.get(key) for c in inside) if v is not None and math.isfinite(v)]
             row[key] = float(np.mean(values)) if values else None
         rows.append(row)
     return rows

@@ -372,10 +372,10 @@ def test_an_init_from_policy_drives_the_dagger_rounds_and_keeps_its_weights(tmp_
         ppo.validate(dataclasses.replace(cfg, bc_warmstart=3))
 
 
-def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_ones_train_on_the_capped_reward(
+def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_and_flat_ones_differ_in_the_reward_alone(
         load_benchmark, tmp_path):
     """Each recipe of benchmarks/rl/curriculum_runs.py is a config its learner accepts (validate raises on a bad
-    field); the *_capped recipes differ from their DexArt-reward twins in the reward alone."""
+    field); the *_capped and *_flat recipes differ from their DexArt-reward twins in the reward alone."""
     from argparse import Namespace
 
     from dexart_lite.rl import ppo, sac
@@ -395,8 +395,8 @@ def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_ones_train
         (sac if isinstance(cfg, sac.SACConfig) else ppo).validate(cfg)
         configs[recipe] = cfg
     assert configs["ppo"].reward == "dexart"
-    for capped, twin in (("dagger_wide_capped", "dagger_wide"),
-                         ("student_anchored_release_capped", "student_anchored_release")):
-        a, b = dataclasses.asdict(configs[capped]), dataclasses.asdict(configs[twin])
-        assert a["reward"] == "capped" and b["reward"] == "dexart"
-        assert {k for k in a if a[k] != b[k]} == {"reward", "out"}
+    for twin in ("dagger_wide", "student_anchored_release"):
+        for mode in ("capped", "flat"):
+            a, b = dataclasses.asdict(configs[f"{twin}_{mode}"]), dataclasses.asdict(configs[twin])
+            assert a["reward"] == mode and b["reward"] == "dexart"
+            assert {k for k in a if a[k] != b[k]} == {"reward", "out"}

@@ -348,7 +348,7 @@ def test_shaped_reward_adds_named_stage2_terms_to_dexarts():
         if out["shaped"][2] or out["shaped"][3]:
             break
     assert stage2 > 10
-    with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped, capped"):
+    with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped, capped, flat"):
         make("laptop", reward="dense")
 
 
@@ -467,27 +467,33 @@ def test_no_module_writes_a_task_fact_down_again():
     assert not found, found
 
 
-def test_capped_reward_counts_the_bonus_up_to_the_success_angle_only():
+def test_capped_and_flat_rewards_change_the_bonus_alone():
     """reward="capped": on the faucet the terminal bonus is (horizon - t) * 1.2 * 1.5 rad however far the
-    handle turned, where DexArt's pays (horizon - t) * 1.2 * |q|; every other term is DexArt's, the same
-    seed and actions give the same physics, and the reward is still the sum of the terms."""
+    handle turned, where DexArt's pays (horizon - t) * 1.2 * |q|; reward="flat" pays horizon * 1.2 * 1.5 rad
+    whatever the step. Every other term is DexArt's, the same seed and actions give the same physics, and the
+    reward is still the sum of the terms."""
     from dexart_lite.experts import ScriptedPolicy
 
+    modes = ("dexart", "capped", "flat")
     envs = {mode: make("faucet", object_names=[objects.list_objects("faucet", "seen")[0].name], observation="state",
-                       reward=mode) for mode in ("dexart", "capped")}
+                       reward=mode) for mode in modes}
     obs = {m: e.reset(seed=0)[0] for m, e in envs.items()}
     expert = ScriptedPolicy(envs["capped"])
     for _ in range(250):
         action = expert(obs["capped"])
         out = {m: e.step(action) for m, e in envs.items()}
         obs = {m: o[0] for m, o in out.items()}
-        plain, capped = out["dexart"][4]["reward_terms"], out["capped"][4]["reward_terms"]
-        assert out["capped"][1] == pytest.approx(sum(capped.values()))
-        assert all(capped[k] == plain[k] for k in plain if k != "bonus")
+        terms = {m: out[m][4]["reward_terms"] for m in modes}
+        for m in modes:
+            assert out[m][1] == pytest.approx(sum(terms[m].values()))
+            assert all(terms[m][k] == terms["dexart"][k] for k in terms["dexart"] if k != "bonus")
         if out["capped"][2]:
             break
     info, s = out["capped"][4], envs["capped"].unwrapped._state
-    assert info["success"] and out["dexart"][2] and info["progress"] > 1.5
+    assert info["success"] and out["dexart"][2] and out["flat"][2] and info["progress"] > 1.5
     remaining = s.horizon - s.t
-    assert capped["bonus"] == pytest.approx(remaining * 1.2 * 1.5)
-    assert plain["bonus"] == pytest.approx(remaining * 1.2 * info["progress"]) and plain["bonus"] > capped["bonus"]
+    assert 0 < remaining < s.horizon
+    assert terms["capped"]["bonus"] == pytest.approx(remaining * 1.2 * 1.5)
+    assert terms["flat"]["bonus"] == pytest.approx(s.horizon * 1.2 * 1.5)
+    assert terms["dexart"]["bonus"] == pytest.approx(remaining * 1.2 * info["progress"])
+    assert terms["dexart"]["bonus"] > terms["capped"]["bonus"]

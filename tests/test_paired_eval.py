@@ -116,7 +116,7 @@ def test_return_vs_success_writes_the_fields_it_documents(tmp_path, load_benchma
     assert result["reward"] == "dexart" and set(row["terms"]["all"]) >= {"reach", "contact", "bonus"}
     with pytest.raises(ValueError, match="task"):
         bench.main(["--task", "sink"])
-    with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped, capped"):
+    with pytest.raises(ValueError, match="unknown reward 'dense'; valid choices: dexart, shaped, capped, flat"):
         bench.main(["--task", "faucet", "--reward", "dense"])
 
 

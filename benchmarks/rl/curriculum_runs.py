@@ -106,9 +106,13 @@ RECIPES = {
 # <recipe>_capped: the recipe on reward="capped" (envs/rewards.py; not DexArt's), nothing else changed: the terminal
 # bonus stops counting at the success threshold, so a success is not worth more for flinging the handle further; on
 # the faucet, DexArt's bonus lets PPO trade reliability for bigger, earlier successes at equal return
-# (benchmarks/results/rl/return_vs_success_faucet.json), and once an anchor is let go nothing else holds it back
+# (benchmarks/results/rl/return_vs_success_faucet.json), and once an anchor is let go nothing else holds it back.
+# <recipe>_flat: the recipe on reward="flat" (not DexArt's), nothing else changed: a success pays the same fixed
+# bonus at any step, so the return ranks reliability first; capped, PPO still trades reliability for speed
+# (benchmarks/results/rl/return_vs_success_faucet_capped.json)
 for _name in ("dagger_wide", "student_anchored_release"):
     RECIPES[f"{_name}_capped"] = {**RECIPES[_name], "reward": "capped"}
+    RECIPES[f"{_name}_flat"] = {**RECIPES[_name], "reward": "flat"}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}

@@ -111,8 +111,9 @@ class DexArtEnv(gym.Env):
     reset on DexArt's viewpoint sphere (``camera.viewpoint``); None (default): the fixed camera;
     observation: "cloud" (DexArt's: point cloud + state) or "state" (a diagnostic, not DexArt's: the state
     vector with the privileged object state appended, ``privileged_state``, and no camera render at all);
-    reward: "dexart" (DexArt's terms), "shaped" (plus ``rewards.shaping``'s stage-2 terms, not DexArt's) or
-    "capped" (the terminal bonus counts progress up to the success threshold only, ``bonus``; not DexArt's);
+    reward: "dexart" (DexArt's terms), "shaped" (plus ``rewards.shaping``'s stage-2 terms, not DexArt's),
+    "capped" (the terminal bonus counts progress up to the success threshold only, ``bonus``; not DexArt's) or
+    "flat" (a success pays a fixed horizon * 1.2 * threshold, whatever the step; not DexArt's);
     hand: "joints" (DexArt's 22-D action: twist + 16 hand joint targets) or "synergy" (not DexArt's: a 9-D
     action, twist + 3 hand synergies, ``robot.synergy_targets``; the env turns it into the 22-D one);
     depth_image: also observe the camera's metric depth image, ``obs["depth_image"]`` (64, 64) float32 m
@@ -258,7 +259,9 @@ class DexArtEnv(gym.Env):
 
     def bonus(self, s: State, progress: float, threshold: float) -> float:
         """The terminal bonus paid on success; ``threshold`` is the progress success needs, where
-        reward="capped" stops counting (``rewards.terminal_bonus``)."""
+        reward="capped" stops counting and which sets reward="flat"'s fixed bonus (``rewards.terminal_bonus``)."""
+        if self.reward_mode == "flat":
+            return rewards.terminal_bonus(s, progress, cap=threshold, flat=True)
         return rewards.terminal_bonus(s, progress, cap=threshold if self.reward_mode == "capped" else None)
 
     def extra_state(self, s: State) -> list[float]:

@@ -14,7 +14,8 @@ Reward terms (``info["reward_terms"]``; the reward is their sum):
     contact      stages 2-3: +0.2 while grasping (palm + >= 2 fingers on the handle)
     arm_contact  stages 2-3: -0.1 per arm link touching the faucet
     progress     stage 3: +1.0 * |q|
-    bonus        on success: (horizon - t) * 1.2 * |q|  (reward="capped": |q| counted up to 1.5 rad)
+    bonus        on success: (horizon - t) * 1.2 * |q|  (reward="capped": |q| counted up to 1.5 rad;
+                 reward="flat": horizon * 1.2 * 1.5 at any step)
     penalty      -0.01 * (action penalty + control penalty), every step
 Stages: 1 reach (dist > 0.2 m), 2 contact (close, not grasping), 3 manipulate (grasping).
 """

@@ -16,7 +16,8 @@ Reward terms (``info["reward_terms"]``; the reward is their sum):
     contact      stages 2-3: +0.2 while grasping
     arm_contact  stages 2-3: -0.1 per arm link touching the laptop
     progress     stage 3: +1.0 * progress; stages 1-2: +0.5 * progress when progress < 0 (closing)
-    bonus        on success: (horizon - t) * 1.2 * progress  (reward="capped": counted up to 0.95)
+    bonus        on success: (horizon - t) * 1.2 * progress  (reward="capped": counted up to 0.95;
+                 reward="flat": horizon * 1.2 * 0.95 at any step)
     penalty      -0.01 * (action penalty + control penalty), every step
 Stages: 1 reach (dist > 0.2 m), 2 contact (close, not grasping), 3 manipulate (grasping).
 """

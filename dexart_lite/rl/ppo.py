@@ -93,7 +93,8 @@ class PPOConfig:
     state_hidden: int = field(default=64, metadata={"help": "width of the trunk's state MLP (DexArt: 64)"})
     reward: str = field(default="dexart", metadata={"help": "dexart; shaped: plus stage-2 terms toward the grasp "
                         "(envs.rewards.shaping; not DexArt's); capped: the terminal bonus counts progress up to the "
-                        "success threshold only (not DexArt's); evaluation reports success either way"})
+                        "success threshold only (not DexArt's); flat: a success pays a fixed horizon * 1.2 * threshold, whatever the "
+                        "step (not DexArt's); evaluation reports success either way"})
     hand: str = field(default="joints", metadata={"help": "joints (DexArt: 16 hand joint targets, a 22-D action) or "
                       "synergy: 3 numbers close knuckles, finger curl and thumb (robot.synergy_targets; a 9-D action, "
                       "not DexArt's)"})

@@ -400,3 +400,5 @@ def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_and_flat_o
             a, b = dataclasses.asdict(configs[f"{twin}_{mode}"]), dataclasses.asdict(configs[twin])
             assert a["reward"] == mode and b["reward"] == "dexart"
             assert {k for k in a if a[k] != b[k]} == {"reward", "out"}
+    a, b = dataclasses.asdict(configs["dagger_wide_flat_g999"]), dataclasses.asdict(configs["dagger_wide_flat"])
+    assert {k for k in a if a[k] != b[k]} == {"gamma", "out"} and (a["gamma"], b["gamma"]) == (0.999, 0.99)

@@ -113,6 +113,11 @@ RECIPES = {
 for _name in ("dagger_wide", "student_anchored_release"):
     RECIPES[f"{_name}_capped"] = {**RECIPES[_name], "reward": "capped"}
     RECIPES[f"{_name}_flat"] = {**RECIPES[_name], "reward": "flat"}
+# dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
+# is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
+# outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against
+# 0.86 B) reliability ranks first
+RECIPES["dagger_wide_flat_g999"] = {**RECIPES["dagger_wide_flat"], "gamma": 0.999}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}

@@ -2,8 +2,10 @@
 
     python benchmarks/rl/curve_compare.py benchmarks/results/rl/curriculum/faucet_state_dagger_wide.json \
         benchmarks/results/rl/curriculum/faucet_state_dagger_wide_capped.json \
-        --png benchmarks/results/rl/faucet_state_capped_curves.png \
-        --json benchmarks/results/rl/faucet_state_capped_curves.json
+        benchmarks/results/rl/curriculum/faucet_state_dagger_wide_flat.json \
+        --keys success_rate episode_return episode_length bc_weight \
+        --png benchmarks/results/rl/faucet_state_reward_curves.png \
+        --json benchmarks/results/rl/faucet_state_reward_curves.json
 
 Reads the ``curve`` of every seed of each ``curriculum_runs.py`` JSON (nothing is trained or evaluated) and draws one
 panel per ``--keys`` entry (default: success of the collected episodes, their mean return on the run's own reward,

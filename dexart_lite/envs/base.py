@@ -260,9 +260,7 @@ class DexArtEnv(gym.Env):
     def bonus(self, s: State, progress: float, threshold: float) -> float:
         """The terminal bonus paid on success; ``threshold`` is the progress success needs, where
         reward="capped" stops counting and which sets reward="flat"'s fixed bonus (``rewards.terminal_bonus``)."""
-        if self.reward_mode == "flat":
-            return rewards.terminal_bonus(s, progress, cap=threshold, flat=True)
-        return rewards.terminal_bonus(s, progress, cap=threshold if self.reward_mode == "capped" else None)
+        return rewards.terminal_bonus(s, progress, threshold, self.reward_mode)
 
     def extra_state(self, s: State) -> list[float]:
         """Task-specific entries of the state vector, before t / horizon (bucket: palm-up)."""

@@ -35,13 +35,12 @@ def penalty(s, weight: float) -> float:
     return -weight * (action_penalty(s.robot.qvel) + control_penalty(s.flange_delta, s.commanded_velocity, s.control_dt))
 
 
-def terminal_bonus(s, progress: float, cap: float | None = None, flat: bool = False) -> float:
-    """Paid once on early success: (horizon - t) * 1.2 * progress; with ``cap`` (reward="capped"), progress
-    counts up to ``cap`` only (the task's success threshold); ``flat`` (reward="flat"): horizon * 1.2 * cap, the
-    same at every step and angle."""
-    if flat:
-        return s.horizon * BONUS_RATE * cap
-    return (s.horizon - s.t) * BONUS_RATE * (progress if cap is None else min(progress, cap))
+def terminal_bonus(s, progress: float, threshold: float, mode: str = "dexart") -> float:
+    """Paid once on early success: DexArt's (horizon - t) * 1.2 * progress; reward="capped" counts progress only
+    up to ``threshold`` (the progress success needs); reward="flat" pays horizon * 1.2 * threshold at any step."""
+    if mode == "flat":
+        return s.horizon * BONUS_RATE * threshold
+    return (s.horizon - s.t) * BONUS_RATE * (min(progress, threshold) if mode == "capped" else progress)
 
 
 def reach_stage(s, reach_threshold: float, grasped: bool) -> int:

@@ -99,8 +99,9 @@ def paired_table() -> str:
 
 def clone_table() -> str:
     """Per task and network: the DAgger clone's success from the true reset (benchmarks/rl/clone_capacity.py)."""
-    rows = ["| task | obs | network (state MLP / heads) | seeds | samples / seed | clone's success in its DAgger rounds "
-            "| seen success | unseen success | JSON |", "|" + "---|" * 9]
+    rows = ["| task | obs | network (state MLP / heads) | seeds | DAgger rounds | samples / seed "
+            "| clone's success in its DAgger rounds | eval episodes / object | seen success | unseen success | JSON |",
+            "|" + "---|" * 11]
     for path in sorted((RESULTS / "rl" / "curriculum").glob("clone_capacity_*.json")):
         result = load(path)
         for arch in result["summary"]:
@@ -110,7 +111,8 @@ def clone_table() -> str:
             samples = " / ".join(f"{r['samples'] / 1000:.0f}k" for r in runs)
             each = {name: " / ".join(f"{v:.2f}" for v in values) for name, values in (("seen", seen), ("unseen", unseen))}
             network = f"`{arch}` ({runs[0]['state_hidden']} / {runs[0]['head'].replace(',', 'x')})"
-            rows.append(f"| {result['task']} | {result['obs']} | {network} | {len(runs)} | {samples} | {rounds} "
+            rows.append(f"| {result['task']} | {result['obs']} | {network} | {len(runs)} | {result['rounds']} | {samples} "
+                        f"| {rounds} | {result['eval_episodes_per_object']} "
                         f"| **{spread(seen)}** ({each['seen']}) | **{spread(unseen)}** ({each['unseen']}) "
                         f"| [{path.name}](../../benchmarks/results/rl/curriculum/{path.name}) |")
     return "\n".join(rows)

@@ -149,6 +149,12 @@ class BulletSim:
                                      basePosition=position)
         return self._register(name, uid)
 
+    def create_ground(self, name: str = "ground") -> Body:
+        """A static plane through the origin, normal +z (what a free-standing object rests on)."""
+        plane = self.c.createCollisionShape(pybullet.GEOM_PLANE)
+        uid = self.c.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=plane)
+        return self._register(name, uid)
+
     def _register(self, name: str, uid: int) -> Body:
         if name in self.bodies:
             raise ValueError(f"a body named {name!r} is already loaded")
@@ -243,6 +249,14 @@ class BulletSim:
         """Linear (m/s) and angular (rad/s) velocity of the root, world frame."""
         return self.c.getBaseVelocity(body.uid)
 
+    def closest_distance(self, body: Body, link_a: int, link_b: int, within: float) -> float | None:
+        """Closest geometric distance (m) between two links of ``body`` (< 0: they overlap), or None when they
+        are farther apart than ``within``. PyBullet reports distances minus both shapes' collision margins
+        (~1 mm each); they are added back here."""
+        margins = self.c.getDynamicsInfo(body.uid, link_a)[11] + self.c.getDynamicsInfo(body.uid, link_b)[11]
+        points = self.c.getClosestPoints(body.uid, body.uid, within, linkIndexA=link_a, linkIndexB=link_b)
+        return min((p[8] + margins for p in points), default=None)
+
     def detect_collisions(self) -> None:
         """A collision pass without stepping (refreshes the contact manifolds)."""
         self.c.performCollisionDetection()
@@ -256,6 +270,19 @@ class BulletSim:
     def friction_motor(self, body: Body, joint: int, force: float) -> None:
         """A velocity motor holding ``joint`` at rest with at most ``force`` (N*m): joint friction."""
         self.c.setJointMotorControl2(body.uid, joint, VELOCITY_CONTROL, targetVelocity=0.0, force=force)
+
+    def pin_point(self, body: Body, link: int, point_in_link, world_point) -> int:
+        """A point-to-point constraint holding ``point_in_link`` (m, in ``link``'s URDF frame) at ``world_point``
+        (m); returns its id for :meth:`move_pin`. PyBullet takes the pivot in the link's centre-of-mass frame."""
+        com_pos, com_quat = self.c.getDynamicsInfo(body.uid, link)[3:5]
+        inv_pos, inv_quat = self.c.invertTransform(com_pos, com_quat)
+        pivot = self.c.multiplyTransforms(inv_pos, inv_quat, list(point_in_link), (0, 0, 0, 1))[0]
+        return self.c.createConstraint(body.uid, link, -1, -1, JOINT_POINT2POINT, (0, 0, 0), pivot,
+                                       list(world_point))
+
+    def move_pin(self, constraint: int, world_point, max_force: float) -> None:
+        """Move a :meth:`pin_point` constraint's world point (m); it pulls with at most ``max_force`` (N)."""
+        self.c.changeConstraint(constraint, list(world_point), maxForce=max_force)
 
     def disable_collision(self, body: Body, link_a: int, link_b: int) -> None:
         """No contacts between two links of ``body``."""

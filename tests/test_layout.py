@@ -79,9 +79,10 @@ def test_no_import_circle_in_the_package():
     assert cycles(import_graph()) == []
 
 
-# The sealed simulator: the PyBullet client lives behind BulletSim (sim.py); an env is read through its public
-# view (``env.state``, ``read_state``, ``evaluate_state``), its underscore attributes stay inside envs/.
-CLIENT = re.compile(r"\bsim\.c\b|\bsim\.client\b|\bself\.c\.\w+\(")
+# The sealed simulator: the PyBullet client lives behind BulletSim (sim.py), which alone imports pybullet and opens
+# a BulletClient; an env is read through its public view (``env.state``, ``read_state``, ``evaluate_state``), its
+# underscore attributes stay inside envs/.
+CLIENT = re.compile(r"\bsim\.c\b|\bsim\.client\b|\bself\.c\.\w+\(|\bBulletClient\b|\bimport pybullet\b|\bpybullet\.[a-zA-Z]")
 ENV_PRIVATE = re.compile(r"\b(env|unwrapped|self\.env)\._[a-z]\w*")
 
 
@@ -109,8 +110,10 @@ def test_the_sealing_check_finds_a_breach(tmp_path):
     (tmp_path / "dexart_lite" / "sim.py").write_text("self.c.stepSimulation()\n")  # its own client: fine
     (tmp_path / "dexart_lite" / "robot.py").write_text("x = self.sim.c.getJointInfo(1, 2)\n")
     (tmp_path / "benchmarks" / "probe.py").write_text("s = env.unwrapped._state\nq = env._t\n")
+    # a module with a world of its own (what objects/feasibility.py had before it used BulletSim)
+    (tmp_path / "dexart_lite" / "checks.py").write_text("c = BulletClient(connection_mode=pybullet.DIRECT)\n")
     assert [b.split(":")[0] + ":" + b.split(":")[1] for b in sealing_breaches(tmp_path)] == [
-        "dexart_lite/robot.py:1", "benchmarks/probe.py:1", "benchmarks/probe.py:2"]
+        "dexart_lite/checks.py:1", "dexart_lite/robot.py:1", "benchmarks/probe.py:1", "benchmarks/probe.py:2"]
 
 
 def test_benchmarks_live_in_theme_folders_and_record_their_provenance():

@@ -1,5 +1,8 @@
 """Physics checks that every generated object must pass (PyBullet DIRECT, dt = 1/240 s).
 
+The object is loaded into a ``BulletSim`` by the env's own loader, so the checks see the physics the tasks see
+(link damping removed, exact inertias, deterministic contact-pair order).
+
 1. **No interpenetration**: body vs functional part over the whole joint range (25 angles plus the
    reset angle); the closest geometric distance must exceed -0.5 mm (resting contact allowed).
    PyBullet reports distances minus both shapes' collision margins (1 mm each); we add them back.
@@ -25,8 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.pointcloud import quat_to_matrix
 from dexart_lite.registration import SPECS
-from dexart_lite.sim import BulletClient, pybullet
+from dexart_lite.sim import BASE_LINK, Body, BulletSim
 
 DT = 1.0 / 240.0  # s
 FAUCET_SUCCESS = SPECS["faucet"].success["angle"]  # rad, |q| beyond this counts (DexArt)
@@ -57,141 +61,131 @@ class CheckResult:
         return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in asdict(self).items()}
 
 
-def new_client() -> BulletClient:
-    client = BulletClient(connection_mode=pybullet.DIRECT)
-    client.setGravity(0.0, 0.0, -9.81)
-    client.setTimeStep(DT)
-    return client
+@dataclass
+class Rig:
+    """One object alone in a ``BulletSim`` (loaded by the env's own loader), its task joint and functional part."""
+
+    sim: BulletSim
+    body: Body
+    joint: int  # the task joint's index (found by name)
+    part: int  # the functional part's link index (the joint's child link)
+
+    def angle(self) -> float:
+        """The task joint's angle (rad)."""
+        return float(self.sim.joint_states(self.body, [self.joint])[0][0])
+
+    def reset(self, q: float) -> None:
+        self.sim.reset_joints(self.body, [self.joint], [float(q)])
+
+    def root_position(self) -> np.ndarray:
+        """World position (m) of the root link's URDF frame."""
+        return np.array(self.sim.base_frame(self.body)[0])
 
 
-def load(client: BulletClient, urdf: Path, fixed_base: bool) -> int:
-    """Load an object with its root frame at the origin; a free body gets a ground plane at z = 0."""
+def load(urdf: Path, joint_name: str, fixed_base: bool) -> Rig:
+    """A world at ``DT`` with the object's root frame at the origin; a free body gets a ground plane at z = 0.
+    The object is loaded as the env loads it (``BulletSim.load_urdf`` with the file's exact inertias)."""
+    sim = BulletSim(dt=DT)
     if not fixed_base:
-        client.createMultiBody(0, client.createCollisionShape(pybullet.GEOM_PLANE))
-    return client.loadURDF(str(urdf), basePosition=(0.0, 0.0, 0.0), useFixedBase=fixed_base,
-                           flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+        sim.create_ground()
+    body = sim.load_urdf("object", urdf, fixed_base=fixed_base, inertia_from_file=True)
+    joint = body.joint(joint_name)
+    return Rig(sim, body, joint, part=joint)  # PyBullet numbers a link like the joint that moves it
 
 
-def joint_angle(client: BulletClient, uid: int) -> float:
-    return client.getJointState(uid, 0)[0]
-
-
-def set_friction(client: BulletClient, uid: int, friction: float) -> None:
-    """Joint friction as DexArt-lite applies it: a velocity motor with target 0 and force = friction."""
-    client.setJointMotorControl2(uid, 0, pybullet.VELOCITY_CONTROL, targetVelocity=0.0, force=friction)
-
-
-def root_frame_pose(client: BulletClient, uid: int) -> tuple[tuple, tuple]:
-    """World pose (position, quaternion) of the root *link frame*; PyBullet reports the inertial frame."""
-    com_pos, com_orn = client.getBasePositionAndOrientation(uid)
-    local_pos, local_orn = client.getDynamicsInfo(uid, -1)[3:5]
-    inv_pos, inv_orn = client.invertTransform(local_pos, local_orn)
-    return client.multiplyTransforms(com_pos, com_orn, inv_pos, inv_orn)
-
-
-def root_frame_position(client: BulletClient, uid: int) -> np.ndarray:
-    return np.array(root_frame_pose(client, uid)[0])
-
-
-def min_clearance(client: BulletClient, uid: int, angles) -> float:
-    """Closest geometric distance (m) between the root and link 0 over joint ``angles`` (< 0: overlap)."""
-    margins = client.getDynamicsInfo(uid, -1)[11] + client.getDynamicsInfo(uid, 0)[11]
+def min_clearance(rig: Rig, angles) -> float:
+    """Closest geometric distance (m) between the root and the part over joint ``angles`` (< 0: overlap)."""
     worst = 1.0
     for q in angles:
-        client.resetJointState(uid, 0, float(q))
-        points = client.getClosestPoints(uid, uid, 0.05, linkIndexA=-1, linkIndexB=0)
-        worst = min([worst] + [pt[8] + margins for pt in points])
+        rig.reset(q)
+        distance = rig.sim.closest_distance(rig.body, BASE_LINK, rig.part, within=0.05)
+        worst = worst if distance is None else min(worst, distance)
     return worst
 
 
-def drive(client: BulletClient, uid: int, start: float, target: float, force: float, seconds: float) -> list[float]:
-    """Position-motor drive from ``start`` toward ``target``; returns the joint angle at every step."""
-    client.resetJointState(uid, 0, start)
-    client.setJointMotorControl2(uid, 0, pybullet.POSITION_CONTROL, targetPosition=target, force=force)
+def drive(rig: Rig, start: float, target: float, force: float, seconds: float) -> list[float]:
+    """Position-motor drive from ``start`` toward ``target`` (rad) with at most ``force`` (N*m); returns the joint
+    angle at every step."""
+    rig.reset(start)
+    rig.sim.position_motors(rig.body, [rig.joint], [target], [0.0], [force])
     trace = []
     for _ in range(int(seconds / DT)):
-        client.stepSimulation()
-        trace.append(joint_angle(client, uid))
+        rig.sim.step()
+        trace.append(rig.angle())
     return trace
 
 
-def settle(client: BulletClient, uid: int, start: float, friction: float, seconds: float) -> tuple[float, float]:
-    """Release at ``start`` with the friction motor on; returns (joint drift, root drift)."""
-    client.resetJointState(uid, 0, start)
-    set_friction(client, uid, friction)
-    root0 = root_frame_position(client, uid)
-    for _ in range(int(seconds / DT)):
-        client.stepSimulation()
-    return abs(joint_angle(client, uid) - start), float(np.linalg.norm(root_frame_position(client, uid) - root0))
+def settle(rig: Rig, start: float, friction: float, seconds: float) -> tuple[float, float]:
+    """Release at ``start`` with the friction motor on (as the env applies joint friction); returns (joint drift,
+    root drift)."""
+    rig.reset(start)
+    rig.sim.friction_motor(rig.body, rig.joint, friction)
+    root0 = rig.root_position()
+    rig.sim.step(int(seconds / DT))
+    return abs(rig.angle() - start), float(np.linalg.norm(rig.root_position() - root0))
 
 
-def bucket_lift(client: BulletClient, uid: int, grasp_point, init: float) -> tuple[float, float]:
+def bucket_lift(rig: Rig, grasp_point, init: float) -> tuple[float, float]:
     """Swing the bail apex upright (1 s), pull it up ``LIFT_HEIGHT`` (2 s), hold (1 s).
 
     Returns (body rise, bail angle) at the end.
     """
-    client.resetJointState(uid, 0, init)
-    set_friction(client, uid, 0.0)
-    for _ in range(int(0.5 / DT)):  # settle on the ground
-        client.stepSimulation()
-    # Constraint frames are relative to the link's inertial frame, not the URDF link frame.
-    local_pos, local_orn = client.getDynamicsInfo(uid, 0)[3:5]
-    inv_pos, inv_orn = client.invertTransform(local_pos, local_orn)
-    pivot_in_com = client.multiplyTransforms(inv_pos, inv_orn, list(grasp_point), (0, 0, 0, 1))[0]
-    link_pos, link_orn = client.getLinkState(uid, 0, computeForwardKinematics=True)[4:6]
-    start = np.array(client.multiplyTransforms(link_pos, link_orn, list(grasp_point), (0, 0, 0, 1))[0])
-    root_pos, root_orn = root_frame_pose(client, uid)
+    rig.reset(init)
+    rig.sim.friction_motor(rig.body, rig.joint, 0.0)
+    rig.sim.step(int(0.5 / DT))  # settle on the ground
+    grasp = np.asarray(grasp_point, dtype=float)  # m, in the bail's frame
+    (link_pos,), (link_quat,) = rig.sim.link_frames(rig.body, [rig.part])
+    start = link_pos + quat_to_matrix(link_quat) @ grasp
+    root_pos, root_quat = rig.sim.base_frame(rig.body)
     z0 = root_pos[2]
     # The apex when upright: bail frame origin (on the pivot line) + the grasp point in root axes.
-    upright = np.array(client.multiplyTransforms(link_pos, root_orn, list(grasp_point), (0, 0, 0, 1))[0])
-    cid = client.createConstraint(uid, 0, -1, -1, pybullet.JOINT_POINT2POINT, (0, 0, 0), pivot_in_com,
-                                  start.tolist())
+    upright = link_pos + quat_to_matrix(np.array(root_quat)) @ grasp
+    pin = rig.sim.pin_point(rig.body, rig.part, grasp, start)
     swing, pull, hold = int(1.0 / DT), int(2.0 / DT), int(1.0 / DT)
     for i in range(swing + pull + hold):
         if i < swing:
             goal = start + (upright - start) * (i + 1) / swing
         else:
             goal = upright + [0.0, 0.0, LIFT_HEIGHT * min(1.0, (i + 1 - swing) / pull)]
-        client.changeConstraint(cid, goal.tolist(), maxForce=LIFT_FORCE)
-        client.stepSimulation()
-    return float(root_frame_position(client, uid)[2] - z0), joint_angle(client, uid)
+        rig.sim.move_pin(pin, goal.tolist(), max_force=LIFT_FORCE)
+        rig.sim.step()
+    return float(rig.root_position()[2] - z0), rig.angle()
 
 
 def check(urdf: Path, category: str, joint: dict, grasp_point, fixed_base: bool) -> CheckResult:
-    """Run every physics check on one object. ``joint`` holds lower/upper/init/target/friction."""
+    """Run every physics check on one object. ``joint`` holds name/lower/upper/init/target/friction."""
     lower, upper, init, target, friction = (joint[k] for k in ("lower", "upper", "init", "target", "friction"))
-    client = new_client()
+    rig = load(urdf, joint["name"], fixed_base)
     try:
-        uid = load(client, urdf, fixed_base)
-        clearance = min_clearance(client, uid, list(np.linspace(lower, upper, 25)) + [init])
+        clearance = min_clearance(rig, list(np.linspace(lower, upper, 25)) + [init])
 
-        base_state = client.saveState()
+        base_state = rig.sim.save_state()
         force = friction + DRIVE_TORQUE[category]
         if category == "faucet":
-            plus = drive(client, uid, init, 2.0, force, 2.0)
-            client.restoreState(base_state)
-            minus = drive(client, uid, init, -2.0, force, 2.0)
+            plus = drive(rig, init, 2.0, force, 2.0)
+            rig.sim.restore_state(base_state)
+            minus = drive(rig, init, -2.0, force, 2.0)
             reached = min(max(plus), -min(minus))
         elif category == "bucket":
-            reached = abs(drive(client, uid, init, target, force, 2.0)[-1])
+            reached = abs(drive(rig, init, target, force, 2.0)[-1])
         else:
-            reached = max(drive(client, uid, init, min(target + 0.2, upper), force, 2.0))
+            reached = max(drive(rig, init, min(target + 0.2, upper), force, 2.0))
 
-        client.restoreState(base_state)
-        passive, root = settle(client, uid, init, friction, 2.0)
+        rig.sim.restore_state(base_state)
+        passive, root = settle(rig, init, friction, 2.0)
         result = CheckResult(min_clearance=clearance, reached=reached, passive_drift=passive, root_drift=root)
 
         if category in ("laptop", "toilet"):
             drifts = []
             for q in np.linspace(lower + 0.05, upper - 0.05, 6):
-                client.restoreState(base_state)
-                drifts.append(settle(client, uid, float(q), friction, 1.0)[0])
+                rig.sim.restore_state(base_state)
+                drifts.append(settle(rig, float(q), friction, 1.0)[0])
             result.hold_drift = max(drifts)
         if category == "bucket":
-            client.restoreState(base_state)
-            result.lift, result.lift_bail_q = bucket_lift(client, uid, grasp_point, init)
+            rig.sim.restore_state(base_state)
+            result.lift, result.lift_bail_q = bucket_lift(rig, grasp_point, init)
     finally:
-        client.disconnect()
+        rig.sim.close()
 
     failures = result.failures
     if clearance < -PENETRATION_TOL:

@@ -119,8 +119,9 @@ for _name in ("dagger_wide", "student_anchored_release"):
 # 0.86 B) reliability ranks first
 RECIPES["dagger_wide_flat_g999"] = {**RECIPES["dagger_wide_flat"], "gamma": 0.999}
 # dagger8_wide_flat: dagger_wide_flat from a better clone: 8 DAgger rounds instead of 3 (the clone alone turns
-# 0.91 / 0.89 of the faucets instead of ~0.79 / 0.75: benchmarks/results/rl/curriculum/clone_capacity_faucet_state_rounds8.json).
-# On capped and flat rewards PPO holds the clone it starts from and does not pass it, so the clone sets the level
+# 0.91 / 0.89 of the faucets instead of ~0.79 / 0.75:
+# benchmarks/results/rl/curriculum/clone_capacity_faucet_state_rounds8.json). On the capped and flat rewards PPO at
+# best holds the clone it starts from (it ends ~0.06 below this one), so the clone sets the level
 RECIPES["dagger8_wide_flat"] = {**RECIPES["dagger_wide_flat"], "dagger_rounds": 8}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",

@@ -37,6 +37,7 @@ import numpy as np
 from dexart_lite import objects as objects_lib
 from dexart_lite.registration import SPECS, TASKS
 from dexart_lite.utils import check_choice, fast_mode, machine_info, parse_overrides, write_json
+from dexart_lite.utils import same_settings as utils_same_settings
 
 RESULT = "run.json"  # in each arm/seed folder: the settings and the results of a finished run
 
@@ -133,34 +134,86 @@ def parameters(cfg) -> int:
     return sum(p.numel() for p in net.parameters())
 
 
+# PPOConfig / SACConfig fields compared as resolved paths, and fields that say how a run executes or how far it goes
+# (not what it learns): not compared, so a run stopped by its time budget, or given more frames, continues
+RL_PATH_FIELDS = ("out", "init_from", "pretrained", "bc_demos")
+RL_EXECUTION_FIELDS = ("threads", "progress", "device", "resume", "max_minutes", "checkpoint_every", "frames")
+
+
 def run_arm(cfg) -> dict:
-    """One distillation run, or the read-back of a finished one with the same settings (``run.json``)."""
-    from dexart_lite.imitation.distill import distill, same_settings
+    """One run of a learner, the one read-back rule of every multi-seed script (studies, ``bench_distill``,
+    ``bench_finetune``, ``curriculum_runs``). ``cfg`` is a ``DistillConfig`` (a student), a ``PPOConfig`` or a
+    ``SACConfig``. A finished run leaves ``run.json`` in ``cfg.out`` (its settings, success, frames, wall time,
+    per-batch history, machine); with the same settings it is read back (``"resumed": True``), with others it is
+    an error.
+
+    - Distillation: an interrupted run (a folder without ``run.json``) starts again from scratch.
+    - PPO and SAC: a run with fewer frames than ``cfg.frames`` (stopped by ``max_minutes``, or asked for more)
+      or interrupted (a checkpoint, no ``run.json``) continues from its checkpoint (``--resume``); the record
+      says whether it did (``continued``)."""
+    from dexart_lite.imitation.distill import DistillConfig
 
     out = Path(cfg.out)
     record = out / RESULT
-    settings = dataclasses.asdict(cfg)
-    if not record.exists():
+    distilled = isinstance(cfg, DistillConfig)
+    if distilled and not record.exists():
         _reuse_identical_run(out, cfg)
     if record.exists():
         done = json.loads(record.read_text())
-        if same_settings(done["config"], cfg):
+        if not _same_settings(done["config"], cfg):
+            raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
+        if distilled or done["frames"] >= cfg.frames:
+            if not distilled and done["config"]["frames"] > cfg.frames:
+                raise ValueError(f"{out} holds a run of {done['frames']} frames, more than the {cfg.frames} asked; "
+                                 "ask for its frames or choose another --out")
             return {**done, "resumed": True}
-        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
-    if out.exists():  # an interrupted run: start it again from scratch
-        import shutil
-
-        shutil.rmtree(out)
-    result = distill(cfg)
-    keep = {k: result[k] for k in ("seen_success", "unseen_success", "expert_frames", "student_frames", "wall_time_s")}
-    keep["mean_max_stage"] = {split: r["mean_max_stage"] for split, r in result["eval"].items()}
-    keep["per_object"] = {split: {name: o["success_rate"] for name, o in r["objects"].items()}
-                          for split, r in result["eval"].items()}
-    keep["history"] = result["history"]
-    keep["config"] = settings
+    keep = _distill(cfg, out) if distilled else _reinforce(cfg, out)
+    keep["config"] = dataclasses.asdict(cfg)
     keep["machine"] = machine_info()  # wall times compare only within one machine
     write_json(record, keep)
     return {**keep, "resumed": False}
+
+
+def _same_settings(recorded: dict, cfg) -> bool:
+    from dexart_lite.imitation.distill import DistillConfig, same_settings
+
+    if isinstance(cfg, DistillConfig):
+        return same_settings(recorded, cfg)
+    return utils_same_settings(recorded, cfg, RL_PATH_FIELDS, RL_EXECUTION_FIELDS)
+
+
+def _distill(cfg, out: Path) -> dict:
+    """A distillation from scratch (an interrupted one's folder is cleared first); what ``run.json`` keeps."""
+    import shutil
+
+    from dexart_lite.imitation.distill import distill
+
+    if out.exists():
+        shutil.rmtree(out)
+    result = distill(cfg)
+    keep = {k: result[k] for k in ("seen_success", "unseen_success", "expert_frames", "student_frames", "wall_time_s")}
+    return {**keep, **_eval_record(result["eval"]), "history": result["history"]}
+
+
+def _reinforce(cfg, out: Path) -> dict:
+    """A PPO or SAC run, continued from its checkpoint if it has one; what ``run.json`` keeps. ``wall_time_s`` is
+    this invocation's (training and evaluation); the history's ``wall_s`` restarts at each continuation."""
+    from dexart_lite.rl import ppo, sac
+
+    continued = (out / ppo.CHECKPOINT).exists()
+    learner = sac if isinstance(cfg, sac.SACConfig) else ppo
+    result = learner.train(dataclasses.replace(cfg, resume=continued))
+    return {"seen_success": result["eval"]["seen"]["success_rate"],
+            "unseen_success": result["eval"]["unseen"]["success_rate"], "frames": result["frames"],
+            "wall_time_s": result["wall_time_s"], "continued": continued, "demos": result["demos"],
+            **_eval_record(result["eval"]), "checkpoint": result["checkpoint"], "history": result["history"]}
+
+
+def _eval_record(evals: dict) -> dict:
+    """The evaluation's mean stage and per-object success, per split."""
+    return {"mean_max_stage": {split: r["mean_max_stage"] for split, r in evals.items()},
+            "per_object": {split: {name: o["success_rate"] for name, o in r["objects"].items()}
+                           for split, r in evals.items()}}
 
 
 def _reuse_identical_run(out: Path, cfg) -> None:

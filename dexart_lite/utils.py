@@ -118,6 +118,23 @@ def write_json(path, obj) -> None:
     path.write_text(json.dumps(obj, indent=2) + "\n")
 
 
+def same_settings(recorded: dict, cfg, paths=(), execution=()) -> bool:
+    """Whether a finished run's recorded config (``asdict`` of a dataclass config such as ``DistillConfig`` or
+    ``PPOConfig``) is ``cfg``. A field added after the run was recorded counts as equal when ``cfg`` leaves it at
+    its default, which is what the run did: finished runs keep being read back when the config gains an option.
+    Fields in ``paths`` are compared as resolved paths (runs/x and /abs/runs/x are one folder); fields in
+    ``execution`` (how a run executes, not what it learns: torch threads, the progress bar) are not compared."""
+    from dataclasses import asdict
+    from pathlib import Path
+
+    def value(key, v):
+        return str(Path(v).resolve()) if key in paths and isinstance(v, str) else v
+
+    settings, defaults = asdict(cfg), asdict(type(cfg)())
+    return set(recorded) <= set(settings) and all(value(k, recorded.get(k, defaults[k])) == value(k, v)
+                                                  for k, v in settings.items() if k not in execution)
+
+
 def parse_overrides(pairs: list[str], config_class) -> dict:
     """``["rounds=8", "drop_state=palm_velocity"]`` -> fields of the dataclass ``config_class``, typed like
     their defaults (a field whose default is None gets a number if the value reads as one)."""

@@ -406,7 +406,7 @@ def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, mon
     assert (tmp_path / "ft.png").stat().st_size > 0
     assert bench.main(argv)["per_seed"][0]["history"] == row["history"]
     # a seed recorded before a PPOConfig field existed (here anchor_coef) had its default: still read back
-    record = tmp_path / "finetune_laptop_s0" / "bench.json"
+    record = tmp_path / "finetune_laptop_s0" / "run.json"
     done = json.loads(record.read_text())
     del done["config"]["anchor_coef"]
     record.write_text(json.dumps(done))

@@ -3,6 +3,7 @@
 The suite runs in fast mode (conftest): a study's runs are distillations of a few dozen frames.
 """
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -339,3 +340,24 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+def test_a_ppo_run_short_of_its_frames_continues_and_a_finished_one_is_read_back(tmp_path):
+    """``run_arm`` is the read-back rule of every multi-seed script, PPO included: a run asked for more frames
+    than it has continues from its checkpoint (not from scratch), a finished one is read back, and a folder
+    that holds more frames than asked, or other settings, is refused."""
+    from test_rl import tiny_config
+
+    cfg = tiny_config(tmp_path, frames=100, frames_per_batch=100, minibatch=50, workers=0)
+    first = study.run_arm(cfg)
+    assert (first["frames"], first["continued"], first["resumed"]) == (100, False, False)
+    assert 0.0 <= first["seen_success"] <= 1.0 and set(first["per_object"]) == {"seen", "unseen"}
+    more = study.run_arm(dataclasses.replace(cfg, frames=200))
+    assert (more["frames"], more["continued"], more["resumed"]) == (200, True, False)
+    assert [row["frames"] for row in more["history"]] == [100, 200]  # the first batch kept, one more trained
+    again = study.run_arm(dataclasses.replace(cfg, frames=200, max_minutes=5.0, threads=1))  # how it runs: not compared
+    assert again["resumed"] and again["history"] == json.loads(json.dumps(more["history"]))
+    with pytest.raises(ValueError, match="more than the 100 asked"):
+        study.run_arm(cfg)
+    with pytest.raises(ValueError, match="holds a run with other settings"):
+        study.run_arm(dataclasses.replace(cfg, frames=200, lr=5e-4))

@@ -7,8 +7,8 @@ Seed ``s`` fine-tunes the student in ``--students`` (``{seed}`` filled in) with 
 --preset finetune --init-from <student>/checkpoint.pt --seed s`` into
 ``runs/finetune_<task>[_<variant>]_s<seed>``; ``--set FIELD=VALUE`` changes PPOConfig fields (with
 ``--variant``, e.g. ``--variant nowarmup --set critic_warmup=0`` for the run without the critic
-warm-up). A finished seed is read back, an interrupted one resumes from its checkpoint. Seeds run one
-after the other, alone.
+warm-up). A finished seed is read back, an interrupted one resumes from its checkpoint (``study.run_arm``,
+the rule every multi-seed script shares). Seeds run one after the other, alone.
 
 The student's success is its own evaluation (``eval_<split>.json`` of the distillation run, same
 evaluation seed and episodes per object; re-evaluated if those differ): it is the curve's frame 0.
@@ -27,7 +27,6 @@ cached next to each checkpoint (``heldout_<split>_e<N>_seed<S>.json``) and run `
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 from pathlib import Path
 
@@ -37,6 +36,7 @@ import dexart_lite
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 from dexart_lite.rl.evaluate import evaluate, evaluate_many
+from dexart_lite.study import run_arm
 from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
 
 RESULTS = benchmark_results(__file__)
@@ -65,28 +65,17 @@ def student_success(student: Path, cfg: ppo.PPOConfig) -> dict:
 
 
 def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
-    """One seed: read back a finished run with the same settings, resume an interrupted one, or run it."""
-    out = Path(cfg.out)
-    record = out / "bench.json"
-    if record.exists():
-        done = json.loads(record.read_text())
-        # a field added to PPOConfig after the run was recorded: the run had that field's default behaviour
-        defaults = {f.name: f.default for f in dataclasses.fields(ppo.PPOConfig)}
-        if {**defaults, **done["config"]} == dataclasses.asdict(cfg):
-            print(f"{out}: finished before, read back")
-            return done
-        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --runs folder")
+    """One seed through the one multi-seed runner (``study.run_arm``): trained, continued from its checkpoint, or
+    read back when its folder holds a finished run with the same settings; with the student's success."""
+    record = run_arm(cfg)
+    if record["resumed"]:
+        print(f"{cfg.out}: finished before, read back")
     before = student_success(student, cfg)
-    resume = (out / ppo.CHECKPOINT).exists()
-    result = ppo.train(dataclasses.replace(cfg, resume=resume))
-    keep = {"student_seen": before["seen"], "student_unseen": before["unseen"],
-            "seen_success": result["eval"]["seen"]["success_rate"],
-            "unseen_success": result["eval"]["unseen"]["success_rate"],
-            "frames": result["frames"], "wall_time_s": result["wall_time_s"], "resumed": resume,
-            "history": [{k: row[k] for k in KEEP if k in row} for row in result["history"]],
-            "config": dataclasses.asdict(cfg)}
-    write_json(record, keep)
-    return keep
+    return {"student_seen": before["seen"], "student_unseen": before["unseen"],
+            "seen_success": record["seen_success"], "unseen_success": record["unseen_success"],
+            "frames": record["frames"], "wall_time_s": record["wall_time_s"], "resumed": record["continued"],
+            "history": [{k: row[k] for k in KEEP if k in row} for row in record["history"]],
+            "config": record["config"]}
 
 
 def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:

@@ -2,11 +2,13 @@
 
     python benchmarks/rl/curriculum_runs.py --task laptop --obs state --recipe reverse_bc --seeds 0 1 --jobs 2 \
         --frames 1000000 --max-minutes 60
-    python benchmarks/rl/curriculum_runs.py ...               # again: a seed with a checkpoint in --runs is resumed
+    python benchmarks/rl/curriculum_runs.py ...               # again: a seed short of --frames continues from its
+                                                               # checkpoint, a finished one is read back
     python benchmarks/rl/curriculum_runs.py --task bucket --obs cloud --recipe student_anchored --seeds 0 \
         --students-only                                        # the point-cloud student step alone (no RL)
 
-Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<obs>_<recipe>_s<seed>`` (with
+Each seed is one ``dexart_lite.rl.ppo.train`` run in ``runs/curriculum/<task>_<obs>_<recipe>_s<seed>``, trained,
+continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-seed script shares; with
 ``--jobs 2`` two seeds train at once, one collector process each). Written, after every finished seed, to
 ``benchmarks/results/rl/curriculum/<task>_<obs>_<recipe>.json``:
 
@@ -40,8 +42,9 @@ import torch
 
 import dexart_lite
 from dexart_lite.objects import list_objects
-from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig, distill
+from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig
 from dexart_lite.rl import ppo, sac
+from dexart_lite.study import run_arm
 from dexart_lite.utils import benchmark_results, fast_mode, machine_info, provenance, write_json
 
 RESULTS = benchmark_results(__file__) / "curriculum"
@@ -123,6 +126,9 @@ RECIPES["dagger_wide_flat_g999"] = {**RECIPES["dagger_wide_flat"], "gamma": 0.99
 # benchmarks/results/rl/curriculum/clone_capacity_faucet_state_rounds8.json). On the capped and flat rewards PPO at
 # best holds the clone it starts from (it ends ~0.06 below this one), so the clone sets the level
 RECIPES["dagger8_wide_flat"] = {**RECIPES["dagger_wide_flat"], "dagger_rounds": 8}
+# dagger8_wide: the same 8-round clone on DexArt's own reward (the faithful setting; dagger8_wide_flat is the named
+# departure): does the better clone need the flat reward to keep >= 0.8 seen?
+RECIPES["dagger8_wide"] = {**RECIPES["dagger_wide"], "dagger_rounds": 8}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
@@ -181,29 +187,25 @@ def training_seconds(history: list[dict]) -> float:
 
 
 def run_seed(job: tuple) -> dict:
-    """Distil the student first (``student`` recipes, once), then train (or resume) one seed; its row of
-    ``per_seed``."""
+    """Distil the student first (``student`` recipes, once), then train, continue or read back one seed, both
+    through the one multi-seed runner (``study.run_arm``); its row of ``per_seed``."""
     cfg, student = job
-    # a finished distillation ends with its report (its checkpoint is rewritten after every round before that)
-    if student is not None and not (Path(student.out) / "report.md").exists():
-        distill(student)
-    resume = (Path(cfg.out) / ppo.CHECKPOINT).exists()
-    learner = sac if isinstance(cfg, sac.SACConfig) else ppo
-    result = learner.train(dataclasses.replace(cfg, resume=resume))
-    return {"seed": cfg.seed, "frames": result["frames"],
-            "seen_success": result["eval"]["seen"]["success_rate"],
-            "unseen_success": result["eval"]["unseen"]["success_rate"],
-            "seen_mean_max_stage": result["eval"]["seen"]["mean_max_stage"],
-            "unseen_mean_max_stage": result["eval"]["unseen"]["mean_max_stage"],
-            "wall_time_s": round(training_seconds(result["history"]), 1),
-            "wall_time_with_eval_s": round(result["wall_time_s"], 1), "resumed": resume,
-            "demo_frames": (result["demos"] or {}).get("frames", 0),
-            "guide_success": (result["demos"] or {}).get("guide_success"),
-            "dagger_success": (result["demos"] or {}).get("dagger_success"),
-            # the cloned policy before any PPO update (a resumed run reads it from its checkpoint)
-            "warmstart_success": (result["demos"] or {}).get("warmstart_eval"),
+    if student is not None:
+        run_arm(student)
+    record = run_arm(cfg)
+    demos = record["demos"] or {}
+    return {"seed": cfg.seed, "frames": record["frames"],
+            "seen_success": record["seen_success"], "unseen_success": record["unseen_success"],
+            "seen_mean_max_stage": record["mean_max_stage"]["seen"],
+            "unseen_mean_max_stage": record["mean_max_stage"]["unseen"],
+            "wall_time_s": round(training_seconds(record["history"]), 1),
+            "wall_time_with_eval_s": round(record["wall_time_s"], 1), "resumed": record["continued"],
+            "demo_frames": demos.get("frames", 0), "guide_success": demos.get("guide_success"),
+            "dagger_success": demos.get("dagger_success"),
+            # the cloned policy before any PPO update (a continued run reads it from its checkpoint)
+            "warmstart_success": demos.get("warmstart_eval"),
             "student_success": student_success(student),
-            "curve": curve(result["history"])}
+            "curve": curve(record["history"])}
 
 
 def student_success(student: DistillConfig | None) -> dict | None:
@@ -227,8 +229,7 @@ def distil_students(students: list[DistillConfig], path: Path, argv, note: str |
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
                **({"note": note} if note else {})}
     for student in students:
-        if not (Path(student.out) / "report.md").exists():
-            distill(student)
+        run_arm(student)
         with (Path(student.out) / "log.csv").open(newline="") as f:
             wall = float(list(csv.DictReader(f))[-1]["wall_s"])  # the last round's training time
         checkpoint = Path(student.out) / CHECKPOINT

@@ -53,6 +53,7 @@ from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate_splits, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes
 from dexart_lite.utils import DEVICES, check_choice, resolve_device, write_json
+from dexart_lite.utils import same_settings as _same_settings
 
 METHODS = ("bc", "dagger")
 LOSSES = ("mse", "l1", "nll")
@@ -200,18 +201,10 @@ EXECUTION_FIELDS = ("threads", "progress", "device")  # how a run executes, not 
 
 
 def same_settings(recorded: dict, cfg: DistillConfig) -> bool:
-    """Whether a finished run's recorded config (``asdict`` of its ``DistillConfig``) is ``cfg``. A field
-    added after the run was recorded counts as equal when ``cfg`` leaves it at its default, which is
-    what the run did: finished runs keep being read back when the config gains an option. Paths
-    (``PATH_FIELDS``) are compared resolved against the working directory; ``EXECUTION_FIELDS`` (torch
-    threads, the progress bar) are not compared: a study run with ``--jobs 2`` (one thread per run) reads
+    """Whether a finished run's recorded config is ``cfg`` (``utils.same_settings``): ``PATH_FIELDS`` compared
+    resolved, ``EXECUTION_FIELDS`` not compared, so a study run with ``--jobs 2`` (one thread per run) reads
     back the runs of one with ``--jobs 1``."""
-    def value(key, v):
-        return str(Path(v).resolve()) if key in PATH_FIELDS and isinstance(v, str) else v
-
-    settings, defaults = asdict(cfg), asdict(DistillConfig())
-    return set(recorded) <= set(settings) and all(value(k, recorded.get(k, defaults[k])) == value(k, v)
-                                                  for k, v in settings.items() if k not in EXECUTION_FIELDS)
+    return _same_settings(recorded, cfg, PATH_FIELDS, EXECUTION_FIELDS)
 
 
 def validate(cfg: DistillConfig) -> None:

@@ -158,6 +158,7 @@ def run_arm(cfg) -> dict:
     distilled = isinstance(cfg, DistillConfig)
     if distilled and not record.exists():
         _reuse_identical_run(out, cfg)
+        _adopt_distillation(out, cfg)
     if record.exists():
         done = json.loads(record.read_text())
         if not _same_settings(done["config"], cfg):
@@ -172,6 +173,28 @@ def run_arm(cfg) -> dict:
     keep["machine"] = machine_info()  # wall times compare only within one machine
     write_json(record, keep)
     return {**keep, "resumed": False}
+
+
+def _adopt_distillation(out: Path, cfg) -> None:
+    """A finished ``dexart-lite distill`` run in ``out`` made outside ``run_arm`` (its report, checkpoint and
+    evaluations, no ``run.json``) with ``cfg``'s settings gets its ``run.json``, so that it is read back, not
+    deleted and trained again; one with other settings is an error."""
+    from dexart_lite.imitation.distill import CHECKPOINT
+    from dexart_lite.rl.checkpoint import load_checkpoint
+
+    files = [out / name for name in ("report.md", CHECKPOINT, "eval_seen.json", "eval_unseen.json")]
+    if not all(f.exists() for f in files):
+        return
+    payload = load_checkpoint(out / CHECKPOINT)
+    if not _same_settings(payload["config"], cfg):
+        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
+    evals = {split: json.loads((out / f"eval_{split}.json").read_text()) for split in ("seen", "unseen")}
+    last = payload["history"][-1]
+    write_json(out / RESULT, {"seen_success": evals["seen"]["success_rate"],
+                              "unseen_success": evals["unseen"]["success_rate"],
+                              "expert_frames": last["expert_frames"], "student_frames": last["student_frames"],
+                              "wall_time_s": last["wall_s"], **_eval_record(evals), "history": payload["history"],
+                              "config": payload["config"], "machine": None, "adopted": True})
 
 
 def _same_settings(recorded: dict, cfg) -> bool:

@@ -361,3 +361,19 @@ def test_a_ppo_run_short_of_its_frames_continues_and_a_finished_one_is_read_back
         study.run_arm(cfg)
     with pytest.raises(ValueError, match="holds a run with other settings"):
         study.run_arm(dataclasses.replace(cfg, frames=200, lr=5e-4))
+
+
+def test_a_distillation_made_outside_the_runner_is_read_back_not_deleted(tmp_path, distilled):
+    """A finished ``distill`` run without ``run.json`` (e.g. made by ``dexart-lite distill``) is adopted by
+    ``run_arm`` with its own success and frames; one with other settings is refused, not deleted."""
+    cfg = tiny_distill_config(tmp_path, rounds=1, max_episode_steps=6)
+    made = distill_lib.distill(cfg)
+    assert len(distilled) == 1 and not (Path(cfg.out) / study.RESULT).exists()
+    record = study.run_arm(cfg)
+    assert len(distilled) == 1 and record["resumed"] and record["adopted"]  # not trained again
+    assert (record["seen_success"], record["unseen_success"]) == (made["seen_success"], made["unseen_success"])
+    assert record["expert_frames"] + record["student_frames"] == made["expert_frames"] + made["student_frames"]
+    (Path(cfg.out) / study.RESULT).unlink()
+    with pytest.raises(ValueError, match="holds a run with other settings"):
+        study.run_arm(dataclasses.replace(cfg, lr=5e-4))
+    assert (Path(cfg.out) / "checkpoint.pt").exists() and len(distilled) == 1

@@ -157,8 +157,9 @@ def run_arm(cfg) -> dict:
     record = out / RESULT
     distilled = isinstance(cfg, DistillConfig)
     if distilled and not record.exists():
-        _reuse_identical_run(out, cfg)
         _adopt_distillation(out, cfg)
+    if distilled and not record.exists() and out.name.startswith("seed"):  # a study's <study>/<arm>/seed<k> folder
+        _reuse_identical_run(out, cfg)
     if record.exists():
         done = json.loads(record.read_text())
         if not _same_settings(done["config"], cfg):

@@ -163,7 +163,7 @@ def run_arm(cfg) -> dict:
     if record.exists():
         done = json.loads(record.read_text())
         if not _same_settings(done["config"], cfg):
-            raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
+            raise _other_settings(out)
         if distilled or done["frames"] >= cfg.frames:
             if not distilled and done["config"]["frames"] > cfg.frames:
                 raise ValueError(f"{out} holds a run of {done['frames']} frames, more than the {cfg.frames} asked; "
@@ -188,14 +188,17 @@ def _adopt_distillation(out: Path, cfg) -> None:
         return
     payload = load_checkpoint(out / CHECKPOINT)
     if not _same_settings(payload["config"], cfg):
-        raise ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
+        raise _other_settings(out)
     evals = {split: json.loads((out / f"eval_{split}.json").read_text()) for split in ("seen", "unseen")}
     last = payload["history"][-1]
-    write_json(out / RESULT, {"seen_success": evals["seen"]["success_rate"],
-                              "unseen_success": evals["unseen"]["success_rate"],
+    write_json(out / RESULT, {**_eval_record(evals),
                               "expert_frames": last["expert_frames"], "student_frames": last["student_frames"],
-                              "wall_time_s": last["wall_s"], **_eval_record(evals), "history": payload["history"],
+                              "wall_time_s": last["wall_s"], "history": payload["history"],
                               "config": payload["config"], "machine": None, "adopted": True})
+
+
+def _other_settings(out: Path) -> ValueError:
+    return ValueError(f"{out} holds a run with other settings; delete it or choose another --out")
 
 
 def _same_settings(recorded: dict, cfg) -> bool:
@@ -227,15 +230,15 @@ def _reinforce(cfg, out: Path) -> dict:
     continued = (out / ppo.CHECKPOINT).exists()
     learner = sac if isinstance(cfg, sac.SACConfig) else ppo
     result = learner.train(dataclasses.replace(cfg, resume=continued))
-    return {"seen_success": result["eval"]["seen"]["success_rate"],
-            "unseen_success": result["eval"]["unseen"]["success_rate"], "frames": result["frames"],
-            "wall_time_s": result["wall_time_s"], "continued": continued, "demos": result["demos"],
-            **_eval_record(result["eval"]), "checkpoint": result["checkpoint"], "history": result["history"]}
+    return {**_eval_record(result["eval"]), "frames": result["frames"], "wall_time_s": result["wall_time_s"],
+            "continued": continued, "demos": result["demos"], "checkpoint": result["checkpoint"],
+            "history": result["history"]}
 
 
 def _eval_record(evals: dict) -> dict:
-    """The evaluation's mean stage and per-object success, per split."""
-    return {"mean_max_stage": {split: r["mean_max_stage"] for split, r in evals.items()},
+    """The evaluation's success (``seen_success``, ``unseen_success``), mean stage and per-object success."""
+    return {**{f"{split}_success": r["success_rate"] for split, r in evals.items()},
+            "mean_max_stage": {split: r["mean_max_stage"] for split, r in evals.items()},
             "per_object": {split: {name: o["success_rate"] for name, o in r["objects"].items()}
                            for split, r in evals.items()}}
 

@@ -20,8 +20,11 @@ a run set's mean delta over its seeds has se = sqrt(sum of the seeds' se^2) / n_
 
 Written to ``benchmarks/results/rl/paired_eval.json``: episodes_per_object, eval_seed, runs (per run set and seed:
 task, recipe, seed, rl_frames, student and rl, each per split {success, se, objects: success per object}; delta per
-split {value, se}), summary (per run set: task, recipe, seeds, rl_frames, and per split the mean student, rl and
-delta over the seeds with the delta's se), command, machine; and ``paired_eval.png`` (the deltas).
+split {value, se}; the command and machine that measured it), summary (per run set: task, recipe, seeds, rl_frames,
+and per split the mean student, rl and delta over the seeds with the delta's se), command, machine (of the latest
+call); and ``paired_eval.png`` (the deltas). ``--run-sets`` re-evaluates the run sets named and keeps the other rows
+of an existing ``--out`` as they were measured (same episodes and seed only), so one run set can be measured again
+on a machine that has only its checkpoints.
 """
 
 from __future__ import annotations
@@ -68,6 +71,19 @@ def checkpoints(run_set: dict, runs: Path) -> list[dict]:
         pairs.append({"task": run_set["task"], "recipe": run_set["recipe"], "seed": row["seed"],
                       "rl_frames": payload["frames"], "rl": rl, "student": student})
     return pairs
+
+
+def merge_rows(previous: dict, rows: list[dict], episodes: int, seed: int) -> list[dict]:
+    """The rows of an earlier paired_eval JSON (``previous``) whose run sets (task, recipe) were not evaluated again,
+    then ``rows``. Earlier rows without their own ``command`` / ``machine`` get the earlier file's. An earlier file
+    with other episodes or seed cannot be merged (its deltas would not be comparable)."""
+    if (previous["episodes_per_object"], previous["eval_seed"]) != (episodes, seed):
+        raise ValueError(f"the existing results use {previous['episodes_per_object']} episodes per object at seed "
+                         f"{previous['eval_seed']}, not {episodes} at {seed}: pass --out elsewhere")
+    fresh = {(r["task"], r["recipe"]) for r in rows}
+    kept = [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous["runs"]
+            if (r["task"], r["recipe"]) not in fresh]
+    return kept + rows
 
 
 def split_stats(result: dict) -> dict:
@@ -148,9 +164,14 @@ def main(argv=None) -> dict:
                      "delta": compare(stats["student"], stats["rl"]),
                      "wall_time_s": round(sum(results[(str(p[w]), s)]["wall_time_s"]
                                               for w in ("student", "rl") for s in SPLITS), 1)})
+    meta = provenance(__file__, argv)
+    for row in rows:
+        row.update(command=meta["command"], machine=meta["machine"])
+    if args.run_sets and args.out.is_file():
+        rows = merge_rows(json.loads(args.out.read_text()), rows, args.episodes, args.seed)
     summary = summarise(rows)
     out = {"episodes_per_object": args.episodes, "eval_seed": args.seed, "runs": rows, "summary": summary,
-           **provenance(__file__, argv), "jobs": args.jobs}
+           **meta, "jobs": args.jobs}
     write_json(args.out, out)
     plot(summary, rows, args.out.with_suffix(".png"))
     for e in summary:

@@ -70,8 +70,8 @@ def test_re_evaluating_one_run_set_keeps_the_others_with_their_provenance(load_b
     fresh = [{"task": "laptop", "recipe": "a", "seed": 0, "rl_frames": 700, "command": "new", "machine": {"cpu": "EPYC"}}]
     rows = bench.merge_rows(previous, fresh, 10, 1000)
     assert [(r["task"], r["seed"], r["rl_frames"], r["command"]) for r in rows] == [
-        ("toilet", 0, 50, "older"), ("laptop", 0, 700, "new")]  # laptop's old seed 1 went with its run set
-    assert rows[0]["machine"] == {"cpu": "i7"}
+        ("laptop", 0, 700, "new"), ("toilet", 0, 50, "older")]  # laptop's old seed 1 went with its run set
+    assert rows[1]["machine"] == {"cpu": "i7"}
     previous["runs"] = previous["runs"][:1]
     assert bench.merge_rows(previous, [], 10, 1000)[0]["machine"] == {"cpu": "Xeon"}
     with pytest.raises(ValueError, match="10 episodes per object at seed 1000, not 20 at 1000"):

@@ -75,15 +75,16 @@ def checkpoints(run_set: dict, runs: Path) -> list[dict]:
 
 def merge_rows(previous: dict, rows: list[dict], episodes: int, seed: int) -> list[dict]:
     """The rows of an earlier paired_eval JSON (``previous``) whose run sets (task, recipe) were not evaluated again,
-    then ``rows``. Earlier rows without their own ``command`` / ``machine`` get the earlier file's. An earlier file
-    with other episodes or seed cannot be merged (its deltas would not be comparable)."""
+    and ``rows``, sorted by task, recipe and seed. Earlier rows without their own ``command`` / ``machine`` get
+    the earlier file's. An earlier file with other episodes or seed cannot be merged (its deltas would not be
+    comparable)."""
     if (previous["episodes_per_object"], previous["eval_seed"]) != (episodes, seed):
         raise ValueError(f"the existing results use {previous['episodes_per_object']} episodes per object at seed "
                          f"{previous['eval_seed']}, not {episodes} at {seed}: pass --out elsewhere")
     fresh = {(r["task"], r["recipe"]) for r in rows}
     kept = [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous["runs"]
             if (r["task"], r["recipe"]) not in fresh]
-    return kept + rows
+    return sorted(kept + rows, key=lambda r: (r["task"], r["recipe"], r["seed"]))  # the order of a full call
 
 
 def split_stats(result: dict) -> dict:

@@ -58,7 +58,6 @@ def test_unknown_run_sets_and_missing_checkpoints_are_named(tmp_path, load_bench
         bench.main(["--episodes", "0"])
 
 
-
 def test_re_evaluating_one_run_set_keeps_the_others_with_their_provenance(load_benchmark):
     """``--run-sets``: the rows of the run sets named are replaced, every other row is kept with the command and
     machine that measured it (the earlier file's where a row has none); other episodes or seed are refused."""
@@ -67,7 +66,8 @@ def test_re_evaluating_one_run_set_keeps_the_others_with_their_provenance(load_b
                 "runs": [{"task": "laptop", "recipe": "a", "seed": s, "rl_frames": 100} for s in (0, 1)]
                 + [{"task": "toilet", "recipe": "a", "seed": 0, "rl_frames": 50, "command": "older",
                     "machine": {"cpu": "i7"}}]}
-    fresh = [{"task": "laptop", "recipe": "a", "seed": 0, "rl_frames": 700, "command": "new", "machine": {"cpu": "EPYC"}}]
+    fresh = [{"task": "laptop", "recipe": "a", "seed": 0, "rl_frames": 700, "command": "new",
+              "machine": {"cpu": "EPYC"}}]
     rows = bench.merge_rows(previous, fresh, 10, 1000)
     assert [(r["task"], r["seed"], r["rl_frames"], r["command"]) for r in rows] == [
         ("laptop", 0, 700, "new"), ("toilet", 0, 50, "older")]  # laptop's old seed 1 went with its run set
@@ -76,6 +76,7 @@ def test_re_evaluating_one_run_set_keeps_the_others_with_their_provenance(load_b
     assert bench.merge_rows(previous, [], 10, 1000)[0]["machine"] == {"cpu": "Xeon"}
     with pytest.raises(ValueError, match="10 episodes per object at seed 1000, not 20 at 1000"):
         bench.merge_rows(previous, fresh, 20, 1000)
+
 
 def test_evaluate_many_evaluates_each_pair_once_and_reads_the_cache_back(tmp_path, monkeypatch):
     """Duplicate (checkpoint, split) pairs are evaluated once; each result is cached next to its checkpoint, named by

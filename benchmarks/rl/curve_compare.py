@@ -31,7 +31,8 @@ from dexart_lite.utils import provenance, write_json
 
 DEFAULT_KEYS = ("success_rate", "episode_return", "bc_weight")
 LABELS = {"success_rate": "success of the collected episodes", "episode_return": "mean episode return (own reward)",
-          "bc_weight": "BC term weight", "anchor_weight": "anchor weight", "episode_length": "episode length (steps)"}
+          "bc_weight": "BC term weight", "anchor_weight": "anchor weight", "episode_length": "episode length (steps)",
+          "kl_init": "KL to the initial policy (nats/step)"}
 
 
 def frames_label(n: int) -> str:
@@ -106,6 +107,7 @@ def main(argv=None) -> dict:
                             label=f"{label(result)} s{row['seed']}")
         for ax, key in zip(axes[0], args.keys):
             ax.set(xlabel="online frames", ylabel=LABELS.get(key, key), xlim=(0, None))
+            ax.xaxis.set_major_formatter(lambda x, _pos: f"{x / 1e3:.0f}k")  # 300k, not 300000 run together
         axes[0][0].legend(fontsize=6)
         fig.tight_layout()
         args.png.parent.mkdir(parents=True, exist_ok=True)

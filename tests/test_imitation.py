@@ -389,6 +389,11 @@ def test_ppo_anchor_is_the_kl_to_the_student(tiny_run, demos_dir, tmp_path):
         ppo_from_student(tiny_run, tmp_path / "x", init_from=None, anchor_coef=1.0)
     with pytest.raises(ValueError, match="anchor_decay must be in"):
         ppo_from_student(tiny_run, tmp_path / "y", anchor_coef=1.0, anchor_decay=0.0)
+    # a floor stops the decay: 1, 0.5, then held at 0.3 instead of 0.25, 0.125
+    floored = SimpleNamespace(anchor_coef=1.0, anchor_decay=0.5, anchor_floor=0.3, critic_warmup=1)
+    assert [ppo.anchor_weight(floored, b) for b in range(5)] == [0.0, 1.0, 0.5, 0.3, 0.3]
+    with pytest.raises(ValueError, match=r"anchor_floor must be in \[0, anchor_coef=1.0\]"):
+        ppo_from_student(tiny_run, tmp_path / "z", anchor_coef=1.0, anchor_decay=0.9, anchor_floor=2.0)
 
 
 def test_bench_finetune_smoke_reads_back_a_finished_seed(tiny_run, tmp_path, monkeypatch, capsys, load_benchmark):

@@ -147,6 +147,9 @@ class PPOConfig:
     anchor_decay: float = field(default=1.0, metadata={"help": "the anchor's weight is multiplied by this after "
                                 "every batch past the critic warm-up (1: a constant anchor, which holds the student "
                                 "but also caps what RL can add; < 1 lets go of it slowly)"})
+    anchor_floor: float = field(default=0.0, metadata={"help": "the decaying anchor's weight stops falling at this "
+                                "value (0: let go entirely; between 0 and --anchor-coef: a weaker anchor that still "
+                                "bounds how far RL drifts from the student)"})
     obs_norm_steps: int = field(default=0, metadata={"help": "steps of the initial policy whose observations fix "
                                 "the network's input normalisation before training (torchrl's ObservationNorm."
                                 "init_stats: per entry of the state vector, one centre and scale for the cloud); "
@@ -297,6 +300,8 @@ def validate(cfg: PPOConfig) -> None:
         raise ValueError("anchor_coef > 0 needs --init-from (the policy to stay near)")
     if not 0.0 < cfg.anchor_decay <= 1.0:
         raise ValueError(f"anchor_decay must be in (0, 1], got {cfg.anchor_decay}")
+    if not (math.isfinite(cfg.anchor_floor) and 0.0 <= cfg.anchor_floor <= cfg.anchor_coef):
+        raise ValueError(f"anchor_floor must be in [0, anchor_coef={cfg.anchor_coef}], got {cfg.anchor_floor}")
     if cfg.sil_capacity < 1:
         raise ValueError(f"sil_capacity must be >= 1 step, got {cfg.sil_capacity}")
     if cfg.obs_norm_steps < 0:
@@ -676,10 +681,10 @@ def bc_weight(cfg: PPOConfig, batch: int) -> float:
 
 def anchor_weight(cfg: PPOConfig, batch: int) -> float:
     """Weight of the KL anchor in batch ``batch`` (0-based): ``anchor_coef``, times ``anchor_decay`` per batch
-    after the critic warm-up (none during it: the actor does not learn then)."""
+    after the critic warm-up (none during it: the actor does not learn then), never below ``anchor_floor``."""
     if cfg.anchor_coef == 0 or batch < cfg.critic_warmup:
         return 0.0
-    return cfg.anchor_coef * cfg.anchor_decay ** (batch - cfg.critic_warmup)
+    return max(cfg.anchor_coef * cfg.anchor_decay ** (batch - cfg.critic_warmup), cfg.anchor_floor)
 
 
 def action_distribution(policy, samples) -> tuple[torch.Tensor, torch.Tensor]:

@@ -14,8 +14,10 @@ continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-se
 
     task, obs, recipe, settings (the PPOConfig fields the recipe sets), frames (online env frames per seed,
     the guide's steps excluded), demo_frames (the demonstrations' steps, counted apart), per_seed (seed,
-    frames, seen_success, unseen_success, wall_time_s, demo_frames, guide_success, curve: frames, success of
-    the collected episodes, of those from the true reset (h = 0) and from the frontier, the mean frontier),
+    frames, seen_success, unseen_success, wall_time_s (training, summed over the run's invocations),
+    wall_time_with_eval_s (this invocation alone, its evaluation included), demo_frames, guide_success, curve:
+    frames, success of the collected episodes, of those from the true reset (h = 0) and from the frontier, the
+    mean frontier),
     seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
 
 ``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json``: task,

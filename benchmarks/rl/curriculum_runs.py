@@ -120,9 +120,9 @@ for _name in ("dagger_wide", "student_anchored_release"):
     RECIPES[f"{_name}_flat"] = {**RECIPES[_name], "reward": "flat"}
 # student_anchored_floor_flat: student_anchored_release_flat with the anchor's decay stopped at a tenth of its start
 # (anchor_floor 0.1, reached after ~45 batches, ~180k frames past the warm-up). Let go entirely, the faucet policies
-# kept their students' level to ~450k frames and then fell below them while the KL to the student grew from 0.6 to
-# 1.3 nats per step (docs item 20); the constant anchor (weight 1) held the students at KL ~0.02 and added nothing
-# (item 11). Does a weaker anchor that is never let go keep the early gains and stop the drift?
+# were within noise of their students at ~440k frames (held out; one seed above, one below) and below both at ~580k,
+# while the KL to the student grew from 0.6 to 1.3 nats per step (docs item 20); the constant anchor (weight 1) held
+# the students at KL ~0.02 and added nothing (item 11). Does a weaker anchor that is never let go stop the drift?
 RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_flat"], "anchor_floor": 0.1}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still

@@ -137,7 +137,8 @@ def parameters(cfg) -> int:
 # PPOConfig / SACConfig fields compared as resolved paths, and fields that say how a run executes or how far it goes
 # (not what it learns): not compared, so a run stopped by its time budget, or given more frames, continues
 RL_PATH_FIELDS = ("out", "init_from", "pretrained", "bc_demos")
-RL_EXECUTION_FIELDS = ("threads", "progress", "device", "resume", "max_minutes", "checkpoint_every", "frames")
+RL_EXECUTION_FIELDS = ("threads", "progress", "device", "resume", "max_minutes", "checkpoint_every", "frames",
+                       "trim_memory")
 
 
 def run_arm(cfg) -> dict:

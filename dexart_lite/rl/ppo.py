@@ -50,7 +50,8 @@ from dexart_lite.rl.checkpoint import (architecture, checkpoint_path, load_check
                                       save_checkpoint)
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
-from dexart_lite.utils import DEVICES, check_choice, optimizer_to, resolve_device, to_cpu
+from dexart_lite.utils import (DEVICES, check_choice, optimizer_to, release_freed_memory, resident_mb, resolve_device,
+                               to_cpu)
 
 BACKENDS = ("process", "distributed", "ray")
 CHECKPOINT = "checkpoint.pt"
@@ -184,6 +185,8 @@ class PPOConfig:
     tcp_port: int = field(default=10123, metadata={"help": "distributed backend: rendezvous port on the master"})
     ray_address: str | None = field(default=None, metadata={"help": "ray backend: cluster address (None: start a local Ray)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
+    trim_memory: bool = field(default=True, metadata={"help": "after each batch hand the heap's freed pages back to the "
+                              "OS (glibc malloc_trim): without it resident memory grows by GBs over a long run"})
 
     def head_widths(self) -> tuple[int, ...]:
         """``head`` as integers; a ValueError names the expected form."""
@@ -881,6 +884,8 @@ def train(cfg: PPOConfig) -> dict:
             starts = curriculum.update(data) if curriculum is not None else {}  # frontiers move on this batch
             if cfg.curriculum == "reverse":
                 send_level(collector, curriculum.level())
+            if cfg.trim_memory:
+                release_freed_memory()  # the update's freed activations back to the OS (see utils)
             updated = time.perf_counter()
 
             # ---- logging and checkpoints
@@ -890,7 +895,7 @@ def train(cfg: PPOConfig) -> dict:
                    **value_error_at_start(data, cfg.gamma), **learner_stats(learner),
                    "collect_s": collected - tick, "update_s": updated - collected,
                    "collect_fps": n / (collected - tick), "update_fps": n / (updated - collected),
-                   "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
+                   "fps": n / (updated - tick), "rss_mb": resident_mb(), "wall_s": time.perf_counter() - start}
             history.append(row)
             logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
             bar.update(n)

@@ -46,7 +46,8 @@ from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.ppo import (PPOConfig, batch_stats, curriculum_config, evaluate_and_report, make_curriculum,
                                 progress_bar)
 from dexart_lite.models.pointnet import ENCODER_SIZES
-from dexart_lite.utils import DEVICES, check_choice, optimizer_to, resolve_device, to_cpu
+from dexart_lite.utils import (DEVICES, check_choice, optimizer_to, release_freed_memory, resident_mb, resolve_device,
+                               to_cpu)
 
 CHECKPOINT = "checkpoint.pt"
 BUFFER_DIR = "buffer"
@@ -121,6 +122,7 @@ class SACConfig:
     gif: bool = same_as_ppo("gif", False)
     threads: int = same_as_ppo("threads", 0)
     progress: bool = same_as_ppo("progress", True)
+    trim_memory: bool = same_as_ppo("trim_memory", True)
     algo: str = field(default="sac", metadata={"help": "the learner (recorded in the checkpoint)"})
 
     def head_widths(self) -> tuple[int, ...]:
@@ -382,12 +384,15 @@ def train(cfg: SACConfig) -> dict:
             if on_device:
                 acting.load_state_dict(actor.state_dict())
             collector.update_policy_weights_()
+            if cfg.trim_memory:
+                release_freed_memory()  # the updates' freed activations back to the OS (see utils)
             updated = time.perf_counter()
 
             # ---- logging and checkpoints
             row = {"frames": frames_done, "batch": batches, **batch_stats(data), **starts,
                    **losses, "updates": steps, "buffer": len(online), "collect_s": collected - tick,
-                   "update_s": updated - collected, "fps": n / (updated - tick), "wall_s": time.perf_counter() - start}
+                   "update_s": updated - collected, "fps": n / (updated - tick), "rss_mb": resident_mb(),
+                   "wall_s": time.perf_counter() - start}
             history.append(row)
             logger.log_metrics({k: v for k, v in row.items() if not math.isnan(v)}, step=frames_done)
             bar.update(n)

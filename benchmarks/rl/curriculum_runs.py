@@ -124,6 +124,9 @@ for _name in ("dagger_wide", "student_anchored_release"):
 # while the KL to the student grew from 0.6 to 1.3 nats per step (docs item 20); the constant anchor (weight 1) held
 # the students at KL ~0.02 and added nothing (item 11). Does a weaker anchor that is never let go stop the drift?
 RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_flat"], "anchor_floor": 0.1}
+# student_anchored_floor: the same floor on DexArt's own reward, for toilets: there the flat bonus took the students
+# down as the anchor let go (item 21), while on DexArt's reward the released anchor gained a little (item 12)
+RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
 # outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against

@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> dict:
     else:
         trim, no_trim = map(arm, jobs)
     skip = min(args.skip, batches - 1)
-    result = {"task": args.task, "batches": batches, "frames_per_batch": 200 if fast_mode() else 4000,
+    result = {"task": args.task, "batches": batches, "frames_per_batch": trim[0]["frames"],
               "trim": summary(trim, skip), "no_trim": summary(no_trim, skip), **provenance(__file__, argv)}
     result["fps_ratio"] = result["trim"]["fps"] / result["no_trim"]["fps"]
     for name in ("trim", "no_trim"):

@@ -5,7 +5,8 @@
 
 For each ``--devices`` entry, in the same process, one after the other: ``dexart-lite train --preset cpu
 --frames F --workers W --eval-episodes 0 --device D`` on ``--task`` and ``dexart-lite distill --rounds 1
---device D`` (one DAgger round, ``--epochs`` epochs of BC; the student acts on the CPU). Collection stays on
+--device D`` (``--demo-episodes`` expert episodes per seen object, ``--epochs`` epochs of BC, then one DAgger
+round of half as many episodes; the student acts on the CPU). Collection stays on
 the CPU in both, so the device changes the update only: the figures are the PPO update's frames/s (the
 median over batches, the first batch left out as warm-up), the collection's frames/s beside it, and the
 distillation's BC seconds. Written to ``benchmarks/results/perf/device_check.json``: per device ``ppo`` (frames,
@@ -45,9 +46,10 @@ def ppo_figures(task: str, device: str, frames: int, workers: int, out: Path) ->
             "frames_per_batch": cfg.frames_per_batch, "epochs": cfg.epochs, "minibatch": cfg.minibatch}
 
 
-def distill_figures(task: str, device: str, epochs: int, out: Path) -> dict:
+def distill_figures(task: str, device: str, epochs: int, demo_episodes: int, out: Path) -> dict:
     size = dict(num_points=64, max_episode_steps=10, demo_episodes_per_object=1, episodes_per_round=1,
-                objects=list_objects(task, "seen")[0].name) if fast_mode() else {}
+                objects=list_objects(task, "seen")[0].name) if fast_mode() else \
+        dict(demo_episodes_per_object=demo_episodes, episodes_per_round=max(1, demo_episodes // 2))
     cfg = DistillConfig(task=task, rounds=1, epochs=epochs, epochs_per_round=epochs, eval_episodes=0,
                         progress=False, device=device, out=str(out), **size)
     result = distill(cfg)
@@ -63,6 +65,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--frames", type=int, default=24_000, help="PPO frames per device (6 batches of 4,000)")
     parser.add_argument("--workers", type=int, default=2, help="PPO collector processes")
     parser.add_argument("--epochs", type=int, default=5, help="distillation BC epochs per device")
+    parser.add_argument("--demo-episodes", type=int, default=4,
+                        help="expert episodes per seen object for BC (the DAgger round runs half as many)")
     parser.add_argument("--json", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     if fast_mode() and args.json == RESULTS:
@@ -74,7 +78,7 @@ def main(argv=None) -> dict:
         for device in args.devices:
             per_device[device] = {"ppo": ppo_figures(args.task, device, args.frames, args.workers,
                                                      Path(scratch) / f"ppo_{device}"),
-                                  "distill": distill_figures(args.task, device, args.epochs,
+                                  "distill": distill_figures(args.task, device, args.epochs, args.demo_episodes,
                                                              Path(scratch) / f"distill_{device}")}
             print(f"{device}: PPO update {per_device[device]['ppo']['update_fps']:.0f} frames/s, "
                   f"distillation BC {per_device[device]['distill']['bc_s']:.1f} s")

@@ -687,9 +687,15 @@ def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out
     c_names = [i.name for i in objects_lib.list_objects("laptop", "unseen") if i.template == "C"]
     assert rows[("unseen", "C")]["objects"] == len(c_names)
     assert result["per_object"][c_names[0]]["per_run"] == [0.0, 1.0]
-    (runs[1] / "eval_unseen.json").unlink()
-    with pytest.raises(FileNotFoundError, match="no eval_unseen.json"):
+    for run in runs:  # the same evaluations under paired_eval's held-out names, read with --eval
+        for split in ("seen", "unseen"):
+            (run / f"eval_{split}.json").rename(run / f"heldout_{split}_e10_seed1000.json")
+    held_out = bench.by_template(runs, "heldout_{split}_e10_seed1000.json")
+    assert held_out["rows"] == result["rows"] and held_out["eval_file"] == "heldout_{split}_e10_seed1000.json"
+    with pytest.raises(FileNotFoundError, match="no eval_seen.json"):
         bench.by_template(runs)
+    with pytest.raises(ValueError, match="--eval must contain"):
+        bench.main(["--runs", str(runs[0]), "--eval", "heldout.json"])
 
 
 def test_random_shift_moves_each_image_whole_and_repeats_its_edges():

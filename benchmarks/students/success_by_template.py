@@ -9,7 +9,8 @@ held-out template C (a shape family no training object has, e.g. tankless square
 others from A / B with one parameter in a held-out band (``urdf/objects/README.md``). A student's
 unseen success mixes the two kinds of novelty; this script separates them. It reads each run's
 ``eval_seen.json`` / ``eval_unseen.json`` (``dexart-lite distill`` or ``bench_distill.py`` folders,
-or a PPO run's) and the object catalog, and writes per split and template: the success of each run
+or a PPO run's; ``--eval heldout_{split}_e10_seed1000.json`` reads ``paired_eval.py``'s held-out evaluations
+instead) and the object catalog, and writes per split and template: the success of each run
 (mean over that template's objects, each object weighted by its episodes), their mean and std, the
 objects and the episodes; and per object the success of each run. No simulation: it takes seconds.
 """
@@ -29,20 +30,22 @@ from dexart_lite.utils import provenance, write_json
 SPLITS = ("seen", "unseen")
 
 
-def read_run(run: Path) -> dict[str, dict]:
-    """``{split: eval json}`` of a finished run folder; a one-line error if one is missing."""
+def read_run(run: Path, pattern: str = "eval_{split}.json") -> dict[str, dict]:
+    """``{split: eval json}`` of a finished run folder (``pattern`` names the file per split); a one-line error if
+    one is missing."""
     evals = {}
     for split in SPLITS:
-        path = run / f"eval_{split}.json"
+        path = run / pattern.format(split=split)
         if not path.is_file():
-            raise FileNotFoundError(f"{run} has no eval_{split}.json: not a finished distill or train run")
+            raise FileNotFoundError(f"{run} has no {path.name}: not a finished distill or train run "
+                                    "(or not evaluated that way)")
         evals[split] = json.loads(path.read_text())
     return evals
 
 
-def by_template(runs: list[Path]) -> dict:
+def by_template(runs: list[Path], pattern: str = "eval_{split}.json") -> dict:
     """The per-template and per-object success of ``runs`` (see the module docstring)."""
-    evals = [read_run(run) for run in runs]
+    evals = [read_run(run, pattern) for run in runs]
     tasks = {e["seen"]["task"] for e in evals}
     if len(tasks) != 1:
         raise ValueError(f"the runs are of different tasks: {sorted(tasks)}")
@@ -66,15 +69,20 @@ def by_template(runs: list[Path]) -> dict:
         for name in evals[0][split]["objects"]:
             per_object[name] = {"split": split, "template": templates[name],
                                 "per_run": [e[split]["objects"][name]["success_rate"] for e in evals]}
-    return {"task": task, "runs": [str(run) for run in runs], "rows": rows, "per_object": per_object}
+    return {"task": task, "runs": [str(run) for run in runs], "eval_file": pattern, "rows": rows,
+            "per_object": per_object}
 
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=Path, nargs="+", required=True, help="finished run folders (one per seed)")
+    parser.add_argument("--eval", default="eval_{split}.json",
+                        help="the evaluation file in each run folder, {split} for seen / unseen")
     parser.add_argument("--json", type=Path, help="where to write the result (default: print only)")
     args = parser.parse_args(argv)
-    result = by_template(args.runs)
+    if "{split}" not in args.eval:
+        raise ValueError(f"--eval must contain {{split}} (e.g. eval_{{split}}.json), got {args.eval!r}")
+    result = by_template(args.runs, args.eval)
     print(f"| {result['task']} | template | objects | episodes | success (mean ± std over {len(args.runs)} runs) |")
     print("|---|---|---|---|---|")
     for row in result["rows"]:

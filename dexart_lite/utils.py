@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 
 
@@ -125,15 +126,21 @@ def release_freed_memory() -> None:
     through the PointNet, several epochs), and glibc keeps the freed pages in its arenas instead of returning them.
     Without it a faucet run's resident memory grew to 7-8 GB per process in 100 minutes, and a run from random
     weights by ~780 MB per batch; ``benchmarks/perf/bench_train_memory.py`` measures both ways."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@functools.cache
+def _malloc_trim():
+    """glibc's ``malloc_trim``, looked up once per process (``find_library`` runs ``ldconfig``); None off glibc."""
     import ctypes
     import ctypes.util
 
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        trim = libc.malloc_trim
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
     except (OSError, AttributeError):  # not glibc (macOS, musl, Windows)
-        return
-    trim(0)
+        return None
 
 
 def write_json(path, obj) -> None:

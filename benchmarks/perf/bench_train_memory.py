@@ -27,6 +27,7 @@ from multiprocessing import get_context
 
 import numpy as np
 
+from dexart_lite import TASKS
 from dexart_lite.rl import ppo
 from dexart_lite.utils import fast_mode, provenance, write_json
 
@@ -54,7 +55,7 @@ def summary(history: list[dict], skip: int) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--task", default="faucet")
+    parser.add_argument("--task", default="faucet", choices=TASKS)
     parser.add_argument("--batches", type=int, default=16, help="PPO batches of 4,000 frames per arm")
     parser.add_argument("--skip", type=int, default=3, help="batches left out of the growth's fit (start-up)")
     parser.add_argument("--jobs", type=int, default=2, choices=(1, 2),

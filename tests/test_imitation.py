@@ -698,6 +698,35 @@ def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out
         bench.main(["--runs", str(runs[0]), "--eval", "heldout.json"])
 
 
+def test_erase_ball_removes_the_points_of_one_ball_and_refills_from_the_rest():
+    """Two clusters 1 m apart plus imagined points at the origin, radius <= 0.4 m (>= 0.1 m, more than a cluster's 8.7 cm diagonal): an erased cloud loses (at least) its
+    whole ball, which cannot reach the other cluster, and every point it has is one of its own kept observed points;
+    imagined points never move; prob 0 is the identity, prob 1 erases every cloud."""
+    from dexart_lite.imitation.distill import erase_ball
+
+    gen = torch.Generator().manual_seed(0)
+    a = torch.rand(50, 3, generator=gen) * 0.05  # cluster at the origin + [0, 5 cm)
+    b = a + torch.tensor([1.0, 0.0, 0.0])  # cluster at x = 1 m
+    cloud = torch.cat([a, b, torch.zeros(10, 3)])  # (110, 3): 100 observed, 10 imagined
+    imagined = torch.zeros(110, dtype=torch.bool)
+    imagined[100:] = True
+    points, mask = cloud.expand(32, 110, 3).clone(), imagined.expand(32, 110)
+    out = erase_ball(points, mask, 1.0, 0.4, torch.Generator().manual_seed(1))
+    assert torch.equal(out[:, 100:], points[:, 100:])  # imagined: untouched
+    for cloud_out in out:
+        near_a = (cloud_out[:100, 0] < 0.5)
+        assert near_a.all() or (~near_a).all()  # one cluster erased whole, refilled
+        kept = cloud[:50] if near_a.all() else cloud[50:100]  # from the other
+        assert all((kept == p).all(-1).any() for p in cloud_out[:100])
+    sides = {bool((cloud_out[:100, 0] < 0.5).all()) for cloud_out in out}
+    assert sides == {True, False}  # the ball lands on either cluster
+    assert torch.equal(erase_ball(points, mask, 0.0, 0.2, torch.Generator()), points)
+    with pytest.raises(ValueError, match="point_erase must be a probability"):
+        validate(tiny_distill_config(Path("unused"), point_erase=1.5))
+    with pytest.raises(ValueError, match="point_erase_radius must be"):
+        validate(tiny_distill_config(Path("unused"), point_erase=0.5, point_erase_radius=0.0))
+
+
 def test_random_shift_moves_each_image_whole_and_repeats_its_edges():
     """A 6x6 ramp shifted by up to 2 px: every output is the padded image cropped at one offset (so its
     rows and columns are runs of the input's), edge values repeat, and a batch gets several offsets."""

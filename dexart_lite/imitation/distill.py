@@ -126,6 +126,12 @@ class DistillConfig:
     image_shift: int = field(default=0, metadata={"help": "depth_cnn only: random shifts of the depth image by up "
                              "to this many pixels in training (edge pixels repeated; DrQ, Kostrikov et al. 2021); "
                              "0: none"})
+    point_erase: float = field(default=0.0, metadata={"help": "probability that a training sample loses its observed "
+                               "points within a ball around one of them, drawn at random (an occlusion; the gap is "
+                               "filled with copies of its other observed points, the imagined hand points stay); "
+                               "0: off"})
+    point_erase_radius: float = field(default=0.15, metadata={"help": "with --point-erase, the largest radius of the "
+                                      "ball, m; each draw is U[0.25, 1] x this"})
     camera_noise: bool = field(default=True, metadata={"help": "DexArt's per-reset camera perturbation (1.5 cm, "
                                "0.05 rad std) in collection and evaluation"})
     max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (None: the task's 250)"})
@@ -249,6 +255,12 @@ def validate(cfg: DistillConfig) -> None:
     if cfg.image_shift and cfg.encoder != "depth_cnn":
         raise ValueError("image_shift shifts the depth image of the depth_cnn student; "
                          "this student reads the point cloud")
+    if not 0.0 <= cfg.point_erase <= 1.0:
+        raise ValueError(f"point_erase must be a probability in [0, 1], got {cfg.point_erase}")
+    if not (math.isfinite(cfg.point_erase_radius) and cfg.point_erase_radius > 0):
+        raise ValueError(f"point_erase_radius must be a finite radius > 0 (m), got {cfg.point_erase_radius}")
+    if cfg.point_erase and cfg.encoder == "depth_cnn":
+        raise ValueError("point_erase erases points of the cloud; the depth_cnn student reads the depth image")
     if cfg.pretrained and cfg.encoder == "depth_cnn":
         raise ValueError("--pretrained holds a PointNet; the depth_cnn student has no PointNet to load it into")
     if cfg.pretrained and not Path(cfg.pretrained).is_file():
@@ -277,6 +289,27 @@ def build_student(cfg: DistillConfig, dims: dict, demos: TensorDictBase
     # the auxiliary head (trunk features -> privileged object state) lives only during distillation
     aux_head = torch.nn.Linear(actor_critic.module[0].module.out_dim, demos["privileged"].shape[-1])
     return actor_critic, ema, aux_head
+
+
+def erase_ball(points: torch.Tensor, imagined: torch.Tensor, prob: float, max_radius: float,
+               generator: torch.Generator) -> torch.Tensor:
+    """A random occlusion of point clouds (B, N, 3), m: each cloud, with probability ``prob``, loses the observed
+    points (``imagined`` (B, N) False) within a ball of radius U[0.25, 1] x ``max_radius`` around one of them drawn
+    at random, and each lost point is replaced by a copy of one of its kept observed points, drawn at random (so N
+    stays, and a max-pooling PointNet sees the cloud without the ball). The imagined hand points never change; a
+    cloud the ball would empty is left as it is. Returns a new tensor."""
+    b, n, _ = points.shape
+    observed = ~imagined
+    centre_idx = torch.multinomial(observed.float() + 1e-12, 1, generator=generator)  # (B, 1) an observed point
+    centre = points.gather(1, centre_idx[..., None].expand(-1, -1, 3))  # (B, 1, 3)
+    radius = max_radius * (0.25 + 0.75 * torch.rand(b, 1, generator=generator))
+    chosen = torch.rand(b, 1, generator=generator) < prob
+    lost = chosen & observed & ((points - centre).norm(dim=-1) < radius)  # (B, N)
+    kept = observed & ~lost
+    lost &= kept.any(dim=1, keepdim=True)  # a ball that covers every observed point: no erasure
+    source = torch.multinomial(kept.float() + 1e-12, n, replacement=True, generator=generator)  # (B, N) kept points
+    fill = points.gather(1, source[..., None].expand(-1, -1, 3))
+    return torch.where(lost[..., None], fill, points)
 
 
 def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator) -> torch.Tensor:
@@ -344,6 +377,9 @@ def fit_student(actor_critic: ActorValueOperator, data: TensorDictBase, cfg: Dis
                 batch = data[idx]  # a copy: the shift below leaves the data as they are
                 if cfg.image_shift:
                     batch[IMAGE_KEY] = random_shift(batch[IMAGE_KEY], cfg.image_shift, generator)
+                if cfg.point_erase:
+                    batch[POINTS_KEY] = erase_ball(batch[POINTS_KEY], batch["imagined_mask"].bool(), cfg.point_erase,
+                                                   cfg.point_erase_radius, generator)
                 batch = batch.to(device) if device is not None else batch  # after the shift: its draws are on the CPU
                 out = policy(batch.select(input_key(cfg.encoder), STATE_KEY))
                 target = batch["expert_action"]  # (B, 22)

@@ -1,0 +1,139 @@
+"""Do toilet policies find the lid by the tank? Seen toilets evaluated with and without their tank in the cloud.
+
+    python benchmarks/students/tank_ablation.py --ckpts runs/curriculum/toilet_cloud_student_s0/checkpoint.pt \
+        runs/curriculum/toilet_cloud_student_s1/checkpoint.pt --episodes 5 --jobs 2
+
+Why: no toilet policy, student or RL, opens the unseen toilets of template C (tankless, squarish), while the same
+policies open unseen toilets of templates A and B (with tanks) as often as seen ones
+(``success_by_template.py``). Every seen toilet has a tank. If a policy locates the lid by the tank, the biggest
+shape in its cloud, a seen toilet whose tank the camera does not see should fail as C toilets do.
+
+How: each checkpoint is evaluated as ``dexart-lite eval`` does (deterministic actions from the true reset,
+point and camera noise on, the env seeded once with ``--seed``, rounds of one episode per object) on the seen
+toilets twice, with the same seed, so both conditions start from the same object poses and camera perturbations:
+``intact`` (the env as it is) and ``no_tank``: before the sensor samples its 512 points, the camera points of the
+toilet's body that lie on its tank above the seat are dropped, so the cloud is close to the one a camera would see
+of the same toilet with its tank cut off at the seat (the tank's lower part and the back deck below it stay; a
+template C toilet has a short deck instead). Tank points are found in the body's root frame from the lid's hinge
+frame: behind the hinge (x > hinge x + lid thickness / 2 + 2 mm, the generator puts the tank's front 4 mm behind
+the lid's reach) and above the seat (z > hinge z - lid thickness / 2); the lid (label ``functional_part``) and the
+robot are never dropped. A template C toilet has nothing there, so ``--split unseen`` checks that the eraser
+leaves C toilets' clouds alone. The physics is untouched: the tank still stops the lid past theta_max.
+
+Written to ``benchmarks/results/students/tank_ablation_toilet.json``: per checkpoint and condition the success,
+mean highest stage (1 reach, 2 contact, 3 lift) and the mean share of the observed camera points that were
+dropped, per template; the command and machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from dexart_lite import objects as objects_lib
+from dexart_lite import pointcloud as pc
+from dexart_lite.envs import make as make_gym_env
+from dexart_lite.rl.checkpoint import policy_function
+from dexart_lite.rl.env import torch_threads
+from dexart_lite.rl.evaluate import load_policy
+from dexart_lite.rollout import run_episodes
+from dexart_lite.utils import benchmark_results, check_choice, provenance, write_json
+
+CONDITIONS = ("intact", "no_tank")
+TANK_MARGIN = 0.002  # m behind the lid's back face; the tank's front is 4 mm behind it (objects/toilet.py)
+
+
+def tank_mask(points: np.ndarray, labels: np.ndarray, root_pos, root_quat, hinge_pos, lid_t: float) -> np.ndarray:
+    """(M,) bool: the points (M, 3) world frame that lie on a toilet's tank, as defined in the module docstring.
+    ``root_pos`` / ``root_quat``: the body's root frame (world); ``hinge_pos``: the lid link's origin (world)."""
+    rot = pc.quat_to_matrix(root_quat)  # body -> world
+    local = (points - np.asarray(root_pos)) @ rot  # rows R^T p: world -> body frame
+    hinge = (np.asarray(hinge_pos) - np.asarray(root_pos)) @ rot
+    return ((labels == pc.LABELS.index("object")) & (local[:, 0] > hinge[0] + lid_t / 2 + TANK_MARGIN)
+            & (local[:, 2] > hinge[2] - lid_t / 2))
+
+
+def erase_tank(env) -> list[float]:
+    """Make ``env`` (a toilet env, unwrapped) drop its tank's points before sampling; returns the list that collects,
+    per observation, the share of labelled camera points dropped."""
+    sensor, objects, sim = env.sensor, env.objects, env.sim
+    original = sensor.visible_points
+    dropped: list[float] = []
+
+    def visible_points(depth=None, seg=None):
+        points, labels = original(depth, seg)  # robot-base frame
+        world = points + sensor.robot_base
+        root_pos, root_quat = sim.base_frame(objects.body)
+        hinge_pos, _ = sim.link_frames(objects.body, [0])  # the lid is link 0, its frame on the hinge
+        keep = ~tank_mask(world, labels, root_pos, root_quat, hinge_pos[0], objects.active.params["lid_t"])
+        dropped.append(float(1.0 - keep.mean()) if len(keep) else 0.0)
+        return points[keep], labels[keep]
+
+    sensor.visible_points = visible_points
+    return dropped
+
+
+def evaluate(ckpt: str, split: str, condition: str, episodes: int, seed: int) -> dict:
+    """One checkpoint on one split under one condition; success and stage per object and template."""
+    actor_critic, cfg, env_kwargs = load_policy(ckpt)
+    if cfg["task"] != "toilet":
+        raise ValueError(f"{ckpt} is a {cfg['task']} policy; this ablation needs a toilet policy")
+    env = make_gym_env("toilet", split=split, **{"point_noise": True, "camera_noise": True, **env_kwargs})
+    dropped = erase_tank(env.unwrapped) if condition == "no_tank" else []
+    env.reset(seed=seed)  # seeded once, as rl.evaluate does: both conditions replay the same resets
+    infos = objects_lib.list_objects("toilet", split)
+    rounds = [(None, info.name) for _ in range(episodes) for info in infos]
+    with torch_threads(1):
+        results = run_episodes(policy_function(actor_critic), env, rounds)
+    env.close()
+    template = {info.name: info.template for info in infos}
+    by_template: dict[str, dict] = {}
+    for t in sorted(set(template.values())):
+        rows = [r for r in results if template[r["object"]] == t]
+        by_template[t] = {"objects": len({r["object"] for r in rows}), "episodes": len(rows),
+                          "success": float(np.mean([r["success"] for r in rows])),
+                          "mean_max_stage": float(np.mean([r["max_stage"] for r in rows]))}
+    return {"checkpoint": ckpt, "split": split, "condition": condition, "frames": cfg["frames"],
+            "success": float(np.mean([r["success"] for r in results])),
+            "mean_max_stage": float(np.mean([r["max_stage"] for r in results])),
+            "dropped_share": float(np.mean(dropped)) if dropped else 0.0, "templates": by_template}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ckpts", nargs="+", required=True, help="toilet checkpoints (distill or PPO)")
+    parser.add_argument("--split", default="seen", help="seen or unseen")
+    parser.add_argument("--episodes", type=int, default=5, help="episodes per object and condition")
+    parser.add_argument("--seed", type=int, default=1000, help="env seed (both conditions)")
+    parser.add_argument("--jobs", type=int, default=1, help="evaluations side by side (processes)")
+    parser.add_argument("--json", type=Path, default=benchmark_results(__file__) / "tank_ablation_toilet.json")
+    args = parser.parse_args(argv)
+    check_choice("split", args.split, ("seen", "unseen"))
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    for ckpt in args.ckpts:
+        if not Path(ckpt).is_file():
+            raise FileNotFoundError(f"no checkpoint at {ckpt}")
+    work = [(c, args.split, cond, args.episodes, args.seed) for c in args.ckpts for cond in CONDITIONS]
+    with ProcessPoolExecutor(max(1, args.jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
+        results = list(tqdm(pool.map(evaluate, *zip(*work)), total=len(work), desc="evaluations", unit="eval"))
+    print("| checkpoint | condition | dropped | success | max stage | " +
+          " | ".join(f"template {t}" for t in results[0]["templates"]) + " |")
+    for r in results:
+        print(f"| {r['checkpoint']} | {r['condition']} | {r['dropped_share']:.2f} | {r['success']:.2f} | "
+              f"{r['mean_max_stage']:.2f} | " + " | ".join(f"{v['success']:.2f} (stage {v['mean_max_stage']:.2f})"
+                                                         for v in r["templates"].values()) + " |")
+    out = {"split": args.split, "episodes_per_object": args.episodes, "seed": args.seed, "results": results,
+           **provenance(__file__, argv)}
+    write_json(args.json, out)
+    print(f"wrote {args.json}")
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -741,3 +741,36 @@ def test_random_shift_moves_each_image_whole_and_repeats_its_edges():
     assert torch.equal(random_shift(image[None], 0, torch.Generator()), image[None])
     with pytest.raises(ValueError, match="image_shift shifts the depth image"):
         validate(tiny_distill_config(Path("unused"), image_shift=4))
+
+
+def test_tank_mask_keeps_only_body_points_behind_the_hinge_and_above_the_seat(load_benchmark):
+    """benchmarks/students/tank_ablation.py: a toilet root at (1, 2, 0) turned 90 deg about z (its +x is world +y),
+    hinge at body (0.1, 0, 0.4), lid 2 cm thick. In the body frame a point
+    behind the hinge (x = 0.2 > 0.1 + 0.01 + 0.002) and above the seat (z = 0.45 > 0.39) is tank; the same point as
+    lid (label 0), in front of the hinge, or below the seat is not."""
+    bench = load_benchmark("tank_ablation")
+    root, quat = np.array([1.0, 2.0, 0.0]), (0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4))  # yaw +90 deg (x, y, z, w)
+    to_world = lambda x, y, z: root + np.array([-y, x, z])  # noqa: E731  body (x, y, z) -> world after the yaw
+    hinge = to_world(0.1, 0.0, 0.4)
+    points = np.array([to_world(0.2, 0.05, 0.45), to_world(0.2, 0.05, 0.45), to_world(0.05, 0.0, 0.45),
+                       to_world(0.2, 0.0, 0.35), to_world(0.111, 0.0, 0.45), to_world(0.113, 0.0, 0.391)])
+    object_, part = 1, 0  # pointcloud.LABELS: 0 functional part, 1 the rest of the object
+    labels = np.array([object_, part, object_, object_, object_, object_])
+    mask = bench.tank_mask(points, labels, root, quat, hinge, lid_t=0.02)
+    assert mask.tolist() == [True, False, False, False, False, True]
+
+
+def test_tank_eraser_drops_tank_points_on_a_seen_toilet_and_none_on_a_tankless_one(load_benchmark):
+    """The eraser installed on a real env: a seen (template A) toilet loses over 5 % of its labelled camera points (the
+    tank is ~a quarter of them at the reset), a template C (tankless) toilet none."""
+    from dexart_lite import objects as objects_lib
+    from dexart_lite.envs import make
+
+    bench = load_benchmark("tank_ablation")
+    for split, template in (("seen", "A"), ("unseen", "C")):
+        env = make("toilet", split=split, num_points=64)
+        dropped = bench.erase_tank(env.unwrapped)
+        name = next(i.name for i in objects_lib.list_objects("toilet", split) if i.template == template)
+        env.reset(seed=0, options={"object": name})
+        assert (dropped[-1] > 0.05) == (template == "A"), (template, dropped)
+        env.close()

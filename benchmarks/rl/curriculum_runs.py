@@ -198,7 +198,8 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> pp
             overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
                              max_episode_steps=30, eval_episodes=1, num_points=64, curriculum_demos=2, buffer=1000)
         return sac.SACConfig(**overrides)
-    overrides["workers"] = 1
+    overrides["workers"] = args.workers
+    overrides["device"] = args.device
     if fast_mode():  # a smoke run of the script itself, not evidence
         overrides.update(frames_per_batch=200, minibatch=100, epochs=1, num_points=64, max_episode_steps=30,
                          eval_episodes=1, frames=400, demo_episodes=min(overrides.get("demo_episodes", 0), 1),
@@ -305,6 +306,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--frames", type=int, default=1_000_000, help="online frames per seed (at most)")
     parser.add_argument("--max-minutes", type=float, default=None, help="stop each seed's training after this")
     parser.add_argument("--jobs", type=int, default=1, help="seeds trained at once")
+    parser.add_argument("--workers", type=int, default=1, help="collector processes per seed (PPO; 1: collect in the "
+                        "training process, as every committed run did; frames_per_batch 4000 must be a multiple)")
+    parser.add_argument("--device", default="cpu", help="where each seed's networks train (PPO): cpu, cuda or auto")
     parser.add_argument("--eval-episodes", type=int, default=3, help="per seen and unseen object")
     parser.add_argument("--runs", default="runs/curriculum")
     parser.add_argument("--results", type=Path, default=RESULTS)
@@ -332,7 +336,8 @@ def main(argv=None) -> dict:
                "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
                "per_seed": [], **provenance(__file__, argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
-               "jobs": args.jobs, **({"note": args.note} if args.note else {})}
+               "jobs": args.jobs, "workers": args.workers, "device": args.device,
+               **({"note": args.note} if args.note else {})}
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         jobs = list(zip(cfgs, students))
         for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):

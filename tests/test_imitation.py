@@ -774,3 +774,27 @@ def test_tank_eraser_drops_tank_points_on_a_seen_toilet_and_none_on_a_tankless_o
         env.reset(seed=0, options={"object": name})
         assert (dropped[-1] > 0.05) == (template == "A"), (template, dropped)
         env.close()
+
+
+
+def test_the_tank_eraser_with_a_probability_hides_some_episodes_and_leaves_the_env_rng_alone(load_benchmark):
+    """prob 0.5 over 12 resets of a seen toilet: some episodes lose their tank points and some do not, and the env's
+    own draws (object pose, camera noise, point sampling) are those of an env without the eraser."""
+    from dexart_lite import objects as objects_lib
+    from dexart_lite.envs import make
+
+    bench = load_benchmark("tank_ablation")
+    name = next(i.name for i in objects_lib.list_objects("toilet", "seen") if i.template == "A")
+    plain, erased = make("toilet", split="seen", num_points=64), make("toilet", split="seen", num_points=64)
+    dropped = bench.erase_tank(erased.unwrapped, prob=0.5, seed=3)
+    hidden = 0
+    for seed in range(12):
+        before = len(dropped)
+        a, _ = plain.reset(seed=seed, options={"object": name})
+        b, _ = erased.reset(seed=seed, options={"object": name})
+        hidden += len(dropped) > before
+        if len(dropped) == before:  # the tank shown: the very same observation
+            assert np.array_equal(a["point_cloud"], b["point_cloud"])
+        assert np.array_equal(a["state"], b["state"])
+    assert 2 <= hidden <= 10, hidden
+    plain.close(), erased.close()

@@ -58,15 +58,24 @@ def tank_mask(points: np.ndarray, labels: np.ndarray, root_pos, root_quat, hinge
             & (local[:, 2] > hinge[2] - lid_t / 2))
 
 
-def erase_tank(env) -> list[float]:
-    """Make ``env`` (a toilet env, unwrapped) drop its tank's points before sampling; returns the list that collects,
-    per observation, the share of labelled camera points dropped."""
+def erase_tank(env, prob: float = 1.0, seed: int = 0) -> list[float]:
+    """Make ``env`` (a toilet env, unwrapped) drop its tank's points before sampling, in every episode (``prob`` 1)
+    or in each episode with probability ``prob``, drawn at the episode's reset from a generator of its own
+    (``seed``), so the env's RNG stream is untouched; returns the list that collects, per observation of an episode
+    without its tank, the share of labelled camera points dropped."""
     sensor, objects, sim = env.sensor, env.objects, env.sim
-    original = sensor.visible_points
+    original, original_reset = sensor.visible_points, sensor.reset
     dropped: list[float] = []
+    draw, hidden = np.random.default_rng(seed), [True]
+
+    def reset(rng):
+        original_reset(rng)
+        hidden[0] = prob >= 1.0 or bool(draw.random() < prob)
 
     def visible_points(depth=None, seg=None):
         points, labels = original(depth, seg)  # robot-base frame
+        if not hidden[0]:
+            return points, labels
         world = points + sensor.robot_base
         root_pos, root_quat = sim.base_frame(objects.body)
         hinge_pos, _ = sim.link_frames(objects.body, [0])  # the lid is link 0, its frame on the hinge
@@ -74,7 +83,7 @@ def erase_tank(env) -> list[float]:
         dropped.append(float(1.0 - keep.mean()) if len(keep) else 0.0)
         return points[keep], labels[keep]
 
-    sensor.visible_points = visible_points
+    sensor.visible_points, sensor.reset = visible_points, reset
     return dropped
 
 

@@ -681,7 +681,9 @@ def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out
         runs.append(run)
     result = bench.by_template(runs)
     rows = {(row["split"], row["template"]): row for row in result["rows"]}
-    assert set(rows) == {("seen", "A"), ("seen", "B"), ("unseen", "A"), ("unseen", "B"), ("unseen", "C")}
+    assert set(rows) == {("seen", "A"), ("seen", "B"), ("seen", "all"), ("unseen", "A"), ("unseen", "B"),
+                         ("unseen", "C"), ("unseen", "all")}
+    assert rows[("seen", "all")]["per_run"] == [0.5, 0.5] and rows[("seen", "all")]["objects"] == 11
     assert rows[("unseen", "C")]["per_run"] == [0.0, 1.0] and rows[("unseen", "C")]["success"] == 0.5
     assert rows[("seen", "A")]["per_run"] == [0.5, 0.5]
     c_names = [i.name for i in objects_lib.list_objects("laptop", "unseen") if i.template == "C"]

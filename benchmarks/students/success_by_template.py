@@ -10,9 +10,10 @@ others from A / B with one parameter in a held-out band (``urdf/objects/README.m
 unseen success mixes the two kinds of novelty; this script separates them. It reads each run's
 ``eval_seen.json`` / ``eval_unseen.json`` (``dexart-lite distill`` or ``bench_distill.py`` folders,
 or a PPO run's; ``--eval heldout_{split}_e10_seed1000.json`` reads ``paired_eval.py``'s held-out evaluations
-instead) and the object catalog, and writes per split and template: the success of each run
-(mean over that template's objects, each object weighted by its episodes), their mean and std, the
-objects and the episodes; and per object the success of each run. No simulation: it takes seconds.
+instead) and the object catalog, and writes per split and template (and ``all``, the whole split): the
+success of each run (mean over that template's objects, each object weighted by its episodes), their
+mean and std, the objects and the episodes; and per object the success of each run. No simulation: it
+takes seconds.
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ def by_template(runs: list[Path], pattern: str = "eval_{split}.json") -> dict:
         groups: dict[str, list[str]] = defaultdict(list)
         for name in evals[0][split]["objects"]:
             groups[templates[name]].append(name)
+        groups["all"] = list(evals[0][split]["objects"])  # the split's overall success, same weighting
         for template, names in sorted(groups.items()):
             per_run, episodes = [], 0
             for e in evals:

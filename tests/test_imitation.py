@@ -664,7 +664,7 @@ def test_auto_drop_state_masks_the_velocity_on_laptop_only():
 
 
 def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out_template(tmp_path,
-                                                                                          load_benchmark):
+                                                                                          load_benchmark, monkeypatch):
     """benchmarks/students/success_by_template.py: per split and template, a run's success is the episode-weighted
     mean over that template's objects; the unseen template-C objects form their own row."""
     bench = load_benchmark("success_by_template")
@@ -698,11 +698,31 @@ def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out
         bench.by_template(runs)
     with pytest.raises(ValueError, match="--eval must contain"):
         bench.main(["--runs", str(runs[0]), "--eval", "heldout.json"])
+    # --evaluate: the missing held-out files are made first, for every run's checkpoint and split, with the episodes
+    # and seed the pattern names (evaluate_many stood in for: it writes this test's figures under the e3 name)
+    import dexart_lite.rl.evaluate as evaluate
+
+    asked = []
+
+    def fake_evaluate_many(work, episodes, seed, jobs=1):
+        asked.append((sorted((str(c), s) for c, s in work), episodes, seed, jobs))
+        for checkpoint, split in work:
+            source = Path(checkpoint).parent / f"heldout_{split}_e10_seed1000.json"
+            (Path(checkpoint).parent / f"heldout_{split}_e3_seed7.json").write_text(source.read_text())
+
+    monkeypatch.setattr(evaluate, "evaluate_many", fake_evaluate_many)
+    made = bench.main(["--runs", *map(str, runs), "--eval", "heldout_{split}_e3_seed7.json", "--evaluate",
+                       "--jobs", "4"])
+    assert made["rows"] == result["rows"]
+    assert asked == [(sorted((str(r / "checkpoint.pt"), s) for r in runs for s in ("seen", "unseen")), 3, 7, 4)]
+    with pytest.raises(ValueError, match="--evaluate writes heldout_"):
+        bench.main(["--runs", str(runs[0]), "--eval", "eval_{split}.json", "--evaluate"])
 
 
 def test_erase_ball_removes_the_points_of_one_ball_and_refills_from_the_rest():
-    """Two clusters 1 m apart plus imagined points at the origin, radius <= 0.4 m (>= 0.1 m, more than a cluster's 8.7 cm diagonal): an erased cloud loses (at least) its
-    whole ball, which cannot reach the other cluster, and every point it has is one of its own kept observed points;
+    """Two clusters 1 m apart plus imagined points at the origin, radius <= 0.4 m (>= 0.1 m, more than a cluster's
+    8.7 cm diagonal): an erased cloud loses (at least) its whole ball, which cannot reach the other cluster, and
+    every point it has is one of its own kept observed points;
     imagined points never move; prob 0 is the identity, prob 1 erases every cloud."""
     from dexart_lite.imitation.distill import erase_ball
 

@@ -10,16 +10,17 @@ others from A / B with one parameter in a held-out band (``urdf/objects/README.m
 unseen success mixes the two kinds of novelty; this script separates them. It reads each run's
 ``eval_seen.json`` / ``eval_unseen.json`` (``dexart-lite distill`` or ``bench_distill.py`` folders,
 or a PPO run's; ``--eval heldout_{split}_e10_seed1000.json`` reads ``paired_eval.py``'s held-out evaluations
-instead) and the object catalog, and writes per split and template (and ``all``, the whole split): the
-success of each run (mean over that template's objects, each object weighted by its episodes), their
-mean and std, the objects and the episodes; and per object the success of each run. No simulation: it
-takes seconds.
+instead, and with ``--evaluate`` makes those that are missing) and the object catalog, and writes per
+split and template (and ``all``, the whole split): the success of each run (mean over that template's
+objects, each object weighted by its episodes), their mean and std, the objects and the episodes; and
+per object the success of each run. Without ``--evaluate`` no simulation: it takes seconds.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -81,9 +82,21 @@ def main(argv=None) -> dict:
     parser.add_argument("--eval", default="eval_{split}.json",
                         help="the evaluation file in each run folder, {split} for seen / unseen")
     parser.add_argument("--json", type=Path, help="where to write the result (default: print only)")
+    parser.add_argument("--evaluate", action="store_true", help="with --eval heldout_{split}_e<N>_seed<S>.json: "
+                        "first evaluate each run's checkpoint.pt where that file is missing (rl.evaluate.evaluate_many: "
+                        "N deterministic episodes per object from the true reset, env seed S), --jobs at a time")
+    parser.add_argument("--jobs", type=int, default=1, help="with --evaluate: evaluations side by side (processes)")
     args = parser.parse_args(argv)
     if "{split}" not in args.eval:
         raise ValueError(f"--eval must contain {{split}} (e.g. eval_{{split}}.json), got {args.eval!r}")
+    if args.evaluate:
+        found = re.fullmatch(r"heldout_\{split\}_e(\d+)_seed(\d+)\.json", args.eval)
+        if not found:
+            raise ValueError(f"--evaluate writes heldout_{{split}}_e<N>_seed<S>.json files; got --eval {args.eval!r}")
+        from dexart_lite.rl.evaluate import evaluate_many
+
+        evaluate_many([(run / "checkpoint.pt", split) for run in args.runs for split in SPLITS],
+                      int(found.group(1)), int(found.group(2)), jobs=args.jobs)
     result = by_template(args.runs, args.eval)
     print(f"| {result['task']} | template | objects | episodes | success (mean ± std over {len(args.runs)} runs) |")
     print("|---|---|---|---|---|")

@@ -820,3 +820,23 @@ def test_the_tank_eraser_with_a_probability_hides_some_episodes_and_leaves_the_e
         assert np.array_equal(a["state"], b["state"])
     assert 2 <= hidden <= 10, hidden
     plain.close(), erased.close()
+
+
+def test_distill_without_tank_writes_the_fields_it_documents(tmp_path, load_benchmark):
+    """benchmarks/students/distill_without_tank.py in fast mode (conftest): one seed, one object, one round; the
+    student's folder is named for the diagnostic, its success per template comes from its own evaluations, and the
+    envs were wrapped only while it distilled; a probability outside [0, 1] is refused."""
+    import dexart_lite.envs as envs
+
+    bench = load_benchmark("distill_without_tank")
+    make = envs.make
+    out = bench.main(["--seeds", "0", "--prob", "1.0", "--runs", str(tmp_path / "runs"),
+                      "--json", str(tmp_path / "notank.json")])
+    assert envs.make is make
+    assert json.loads((tmp_path / "notank.json").read_text()) == json.loads(json.dumps(out))
+    row, = out["per_seed"]
+    assert Path(row["run"]).name == "toilet_cloud_student_notank_s0" and out["prob"] == 1.0
+    assert set(row["per_template"]) == {"seen_A", "seen_B", "unseen_A", "unseen_B", "unseen_C"}
+    assert {"command", "machine", "eval_episodes_per_object", "seen_success", "unseen_success"} <= out.keys()
+    with pytest.raises(ValueError, match="--prob must be a probability"):
+        bench.main(["--prob", "1.5"])

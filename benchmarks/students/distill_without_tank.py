@@ -106,8 +106,11 @@ def main(argv=None) -> dict:
     if not 0.0 <= args.prob <= 1.0:
         raise ValueError(f"--prob must be a probability in [0, 1], got {args.prob}")
     cfgs = [student_config(seed, args.runs, 1 if args.jobs > 1 else 0) for seed in args.seeds]
-    with ProcessPoolExecutor(max(1, args.jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
-        per_seed = list(pool.map(distil, cfgs, [args.prob] * len(cfgs)))
+    if args.jobs > 1:  # spawned workers, each with its own wrapped make
+        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            per_seed = list(pool.map(distil, cfgs, [args.prob] * len(cfgs)))
+    else:  # here: the wrap is undone after each seed
+        per_seed = [distil(cfg, args.prob) for cfg in cfgs]
     out = {"task": "toilet", "prob": args.prob, "student_settings": str(STUDENT.name), "per_seed": per_seed,
            "seen_success": float(np.mean([r["seen_success"] for r in per_seed])),
            "unseen_success": float(np.mean([r["unseen_success"] for r in per_seed])),

@@ -37,6 +37,7 @@ from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
 from dexart_lite import pointcloud as pc
+from dexart_lite.articulated import PART_LINK
 from dexart_lite.envs import make as make_gym_env
 from dexart_lite.rl.checkpoint import policy_function
 from dexart_lite.rl.env import torch_threads
@@ -78,7 +79,7 @@ def erase_tank(env, prob: float = 1.0, seed: int = 0) -> list[float]:
             return points, labels
         world = points + sensor.robot_base
         root_pos, root_quat = sim.base_frame(objects.body)
-        hinge_pos, _ = sim.link_frames(objects.body, [0])  # the lid is link 0, its frame on the hinge
+        hinge_pos, _ = sim.link_frames(objects.body, [PART_LINK])  # the lid's frame sits on the hinge
         keep = ~tank_mask(world, labels, root_pos, root_quat, hinge_pos[0], objects.active.params["lid_t"])
         dropped.append(float(1.0 - keep.mean()) if len(keep) else 0.0)
         return points[keep], labels[keep]

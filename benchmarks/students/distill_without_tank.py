@@ -42,9 +42,9 @@ RESULTS = benchmark_results(__file__)
 STUDENT = RESULTS / "distill_toilet_episodes2x.json"  # curriculum_runs.STUDENTS["toilet"]
 
 
-def tank_ablation():
-    """The sibling script ``tank_ablation.py`` as a module (benchmarks are scripts, not a package)."""
-    spec = importlib.util.spec_from_file_location("tank_ablation", Path(__file__).with_name("tank_ablation.py"))
+def sibling(name: str):
+    """The sibling script ``<name>.py`` as a module (benchmarks are scripts, not a package)."""
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -66,7 +66,7 @@ def distil(cfg: DistillConfig, prob: float) -> dict:
     import dexart_lite.envs as envs
     import dexart_lite.rl.evaluate as evaluate
 
-    original, erase_tank = envs.make, tank_ablation().erase_tank
+    original, erase_tank = envs.make, sibling("tank_ablation").erase_tank
     if evaluate.make_gym_env is not original:
         raise RuntimeError("rl.evaluate must build its envs with the unwrapped make")
     built = [0]
@@ -82,13 +82,8 @@ def distil(cfg: DistillConfig, prob: float) -> dict:
         result = run_arm(cfg)
     finally:
         envs.make = original
-    templates = {i.name: i.template for split in ("seen", "unseen") for i in objects_lib.list_objects("toilet", split)}
-    per_template = {}
-    for split in ("seen", "unseen"):
-        objs = json.loads((Path(cfg.out) / f"eval_{split}.json").read_text())["objects"]
-        for t in sorted({templates[n] for n in objs}):
-            names = [n for n in objs if templates[n] == t]
-            per_template[f"{split}_{t}"] = float(np.mean([objs[n]["success_rate"] for n in names]))
+    rows = sibling("success_by_template").by_template([Path(cfg.out)])["rows"]  # from its own evaluations
+    per_template = {f"{r['split']}_{r['template']}": r["success"] for r in rows if r["template"] != "all"}
     return {"seed": cfg.seed, "run": cfg.out, "seen_success": result["seen_success"],
             "unseen_success": result["unseen_success"], "per_template": per_template,
             "expert_frames": result["expert_frames"], "student_frames": result["student_frames"],

@@ -8,7 +8,7 @@ policies open unseen toilets of templates A and B (with tanks) as often as seen 
 (``success_by_template.py``). Every seen toilet has a tank. If a policy locates the lid by the tank, the biggest
 shape in its cloud, a seen toilet whose tank the camera does not see should fail as C toilets do.
 
-How: each checkpoint is evaluated as ``dexart-lite eval`` does (deterministic actions from the true reset,
+How: each checkpoint is evaluated by ``dexart-lite eval``'s own function (deterministic actions from the true reset,
 point and camera noise on, the env seeded once with ``--seed``, rounds of one episode per object) on the seen
 toilets twice, with the same seed, so both conditions start from the same object poses and camera perturbations:
 ``intact`` (the env as it is) and ``no_tank``: before the sensor samples its 512 points, the camera points of the
@@ -38,11 +38,8 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK
-from dexart_lite.envs import make as make_gym_env
-from dexart_lite.rl.checkpoint import policy_function
-from dexart_lite.rl.env import torch_threads
+from dexart_lite.rl.evaluate import evaluate as evaluate_policy
 from dexart_lite.rl.evaluate import load_policy
-from dexart_lite.rollout import run_episodes
 from dexart_lite.utils import benchmark_results, check_choice, provenance, write_json
 
 CONDITIONS = ("intact", "no_tank")
@@ -89,28 +86,24 @@ def erase_tank(env, prob: float = 1.0, seed: int = 0) -> list[float]:
 
 
 def evaluate(ckpt: str, split: str, condition: str, episodes: int, seed: int) -> dict:
-    """One checkpoint on one split under one condition; success and stage per object and template."""
+    """One checkpoint on one split under one condition (``rl.evaluate.evaluate``, the eraser installed through its
+    ``prepare_env`` hook for ``no_tank``); success and stage overall and per template."""
     actor_critic, cfg, env_kwargs = load_policy(ckpt)
     if cfg["task"] != "toilet":
         raise ValueError(f"{ckpt} is a {cfg['task']} policy; this ablation needs a toilet policy")
-    env = make_gym_env("toilet", split=split, **{"point_noise": True, "camera_noise": True, **env_kwargs})
-    dropped = erase_tank(env.unwrapped) if condition == "no_tank" else []
-    env.reset(seed=seed)  # seeded once, as rl.evaluate does: both conditions replay the same resets
-    infos = objects_lib.list_objects("toilet", split)
-    rounds = [(None, info.name) for _ in range(episodes) for info in infos]
-    with torch_threads(1):
-        results = run_episodes(policy_function(actor_critic), env, rounds)
-    env.close()
-    template = {info.name: info.template for info in infos}
+    erasers: list[list[float]] = []  # the eraser's record of dropped shares, once installed
+    prepare = (lambda env: erasers.append(erase_tank(env))) if condition == "no_tank" else None
+    result = evaluate_policy(actor_critic, "toilet", split, episodes, seed, env_kwargs, prepare_env=prepare)
+    dropped = erasers[0] if erasers else []
+    template = {info.name: info.template for info in objects_lib.list_objects("toilet", split)}
     by_template: dict[str, dict] = {}
-    for t in sorted(set(template.values())):
-        rows = [r for r in results if template[r["object"]] == t]
-        by_template[t] = {"objects": len({r["object"] for r in rows}), "episodes": len(rows),
-                          "success": float(np.mean([r["success"] for r in rows])),
-                          "mean_max_stage": float(np.mean([r["max_stage"] for r in rows]))}
+    for t in sorted(set(template.values())):  # every object has the same episodes: plain means over objects
+        objs = [r for name, r in result["objects"].items() if template[name] == t]
+        by_template[t] = {"objects": len(objs), "episodes": sum(r["episodes"] for r in objs),
+                          "success": float(np.mean([r["success_rate"] for r in objs])),
+                          "mean_max_stage": float(np.mean([r["mean_max_stage"] for r in objs]))}
     return {"checkpoint": ckpt, "split": split, "condition": condition, "frames": cfg["frames"],
-            "success": float(np.mean([r["success"] for r in results])),
-            "mean_max_stage": float(np.mean([r["max_stage"] for r in results])),
+            "success": result["success_rate"], "mean_max_stage": result["mean_max_stage"],
             "dropped_share": float(np.mean(dropped)) if dropped else 0.0, "templates": by_template}
 
 

@@ -16,6 +16,7 @@ import argparse
 import json
 import time
 from pathlib import Path
+from typing import Callable
 
 from torchrl.modules import ActorValueOperator
 
@@ -32,15 +33,20 @@ SPLITS = ("seen", "unseen", "seen_half")
 
 
 def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", episodes_per_object: int = 10,
-             seed: int = 100, env_kwargs: dict | None = None, device: torch.device | None = None) -> dict:
+             seed: int = 100, env_kwargs: dict | None = None, device: torch.device | None = None,
+             prepare_env: Callable | None = None) -> dict:
     """Success per object and overall; see the module docstring. ``env_kwargs`` go to the gymnasium env
     (``dexart_lite.envs.make``); the episodes run in the rollout layer (``dexart_lite.rollout``). ``device``:
-    where the network acts (None: where it is; one observation at a time, so the CPU is usually fastest)."""
+    where the network acts (None: where it is; one observation at a time, so the CPU is usually fastest).
+    ``prepare_env``: called with the unwrapped env before its first reset (a diagnostic's hook, e.g. the tank
+    eraser of ``benchmarks/students/tank_ablation.py``)."""
     check_choice("split", split, SPLITS)
     if episodes_per_object < 1:
         raise ValueError(f"episodes_per_object must be >= 1, got {episodes_per_object}")
     names = [info.name for info in objects_lib.list_objects(task, split)]
     env = make_gym_env(task, split=split, **{"point_noise": True, "camera_noise": True, **(env_kwargs or {})})
+    if prepare_env is not None:
+        prepare_env(env.unwrapped)
     # The env RNG is seeded once, by a reset (as torchrl's set_seed did when evaluations ran through
     # torchrl: the committed evaluations replay episode for episode); the episodes draw from it in turn.
     env.reset(seed=seed)

@@ -249,9 +249,11 @@ def test_checkpoint_reloads_and_evaluates_from_the_command_line(tiny_run, tmp_pa
     assert list(res["objects"]) == names and res["episodes"] == len(names)
     assert 0.0 <= res["success_rate"] <= 1.0 and 1.0 <= res["mean_max_stage"] <= 3.0
     # same seed, same result: deterministic actions, seeded env
+    prepared = []  # the prepare_env hook sees the unwrapped env once, before the first reset
     again = evaluate(actor_critic_from_checkpoint(payload), "laptop", "unseen", 1, 7,
-                     {"num_points": 32, "max_episode_steps": 20})
-    assert again["objects"] == res["objects"]
+                     {"num_points": 32, "max_episode_steps": 20},
+                     prepare_env=lambda env: prepared.append((env is env.unwrapped, env.sensor.camera is not None)))
+    assert again["objects"] == res["objects"] and prepared == [(True, True)]
 
 
 def test_resume_continues_the_run(tiny_run, tmp_path):

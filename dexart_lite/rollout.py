@@ -32,8 +32,10 @@ def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on
     ``seed`` None: the env's RNG goes on from the previous reset instead of being seeded again).
 
     ``on_reset(obs, info)`` is called after each reset, ``on_step`` after each step (see ``OnStep``).
-    Returns one dict per episode: object, seed, success (at any step), max_stage (highest stage,
-    1..3, including the reset state), return, steps, stages (the stage after each step).
+    Returns one dict per episode: object, seed, success (at any step), success_step (the number of steps
+    after which it first succeeded: 0 at the reset, None if never; on tasks that do not end at a success,
+    the bucket, it is earlier than ``steps``), max_stage (highest stage, 1..3, including the reset state),
+    return, steps, stages (the stage after each step).
     """
     results = []
     for seed, name in tqdm(episodes, desc=desc, unit="episode", disable=not progress, dynamic_ncols=True):
@@ -43,19 +45,21 @@ def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on
         if on_reset is not None:
             on_reset(obs, info)
         success, max_stage, total, stages = bool(info["success"]), int(info["stage"]), 0.0, []
-        done, t = False, 0
+        done, t, success_step = False, 0, 0 if success else None
         while not done:
             action = policy(obs)
             next_obs, reward, terminated, truncated, info = env.step(action)
             if on_step is not None:
                 on_step(obs, action, reward, next_obs, info, t)
+            if not success and info["success"]:
+                success_step = t + 1
             success = success or bool(info["success"])
             stages.append(int(info["stage"]))
             max_stage = max(max_stage, stages[-1])
             total += float(reward)
             obs, done, t = next_obs, terminated or truncated, t + 1
         results.append({"object": info["object_name"], "seed": seed, "success": success,
-                        "max_stage": max_stage, "return": total, "steps": t, "stages": stages})
+                        "success_step": success_step, "max_stage": max_stage, "return": total, "steps": t, "stages": stages})
     return results
 
 

@@ -81,6 +81,17 @@ def test_a_guide_that_succeeds_before_h_hands_over_one_step_before_its_success()
     assert same(obs, plain_run(STATE, seed, length - 1, name))
 
 
+def test_on_a_task_that_goes_on_after_success_the_demo_length_is_the_first_success():
+    # the bucket does not end at a success: L is where the guide first lifts it, not the horizon (250), so the
+    # reverse frontier (L - 1) starts the learner before the lift, not after it
+    (seed, name, length), = find_demos("bucket", 1, env_kwargs=STATE)
+    assert 0 < length < HORIZON
+    env = GuidedStart(make("bucket", **STATE), {"schedule": "none"})
+    obs, info = env.start(seed, length - 1, name)
+    assert info["start_step"] == length - 1 and not info["success"]
+    assert env.step(env.guide(obs))[4]["success"]  # the guide's next step is its first success
+
+
 def test_no_guide_step_is_collected_and_frames_count_the_learner_only():
     from torchrl.collectors import Collector
 

@@ -128,6 +128,12 @@ RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_fl
 # student_anchored_floor: the same floor on DexArt's own reward, for toilets: there the flat bonus took the students
 # down as the anchor let go (item 21), while on DexArt's reward the released anchor gained a little (item 12)
 RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}
+# student_anchored_floor_reverse: the same from the experts' states, for buckets, whose students never lift a bucket
+# from the true reset (so PPO from the reset collects no success to learn from): RFCL's reverse curriculum on 11
+# (seed, object) pairs the scripted expert solves, each start frontier first one step before the expert's success
+# and moved back 5 steps after 3 successes in a row from it; 10 % of the episodes from the true reset
+RECIPES["student_anchored_floor_reverse"] = {**RECIPES["student_anchored_floor"], "curriculum": "reverse",
+                                             "curriculum_demos": 11, "curriculum_step": 5}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
 # outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against

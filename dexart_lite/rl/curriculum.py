@@ -156,8 +156,9 @@ class GuidedStart(gym.Wrapper):
 
 def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kwargs: dict | None = None,
                guide: str = "expert", max_tries: int = 4) -> list[tuple[int, str, int]]:
-    """``count`` demonstrations of the guide, ``[(reset seed, object, L)]``: episodes on which it succeeds
-    at step ``L`` (the first success ends the episode). Objects in turn (the ``solve`` order: episode ``k``
+    """``count`` demonstrations of the guide, ``[(reset seed, object, L)]``: episodes on which it first succeeds
+    at step ``L`` (faucet, laptop, toilet: the success ends the episode; bucket: it goes on to the horizon, and a
+    frontier at the horizon would start the learner after the lift). Objects in turn (the ``solve`` order: episode ``k``
     of object ``i`` has seed ``seed + 1000 k + i``); an episode the guide fails is skipped. Run on the
     state observation (no camera) and the task's full horizon: the physics, and so ``L``, does not depend on
     what is observed."""
@@ -176,8 +177,8 @@ def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kw
     try:
         for episode in solve_episodes(names, max_tries * math.ceil(count / len(names)), seed):
             result, = run_episodes(policy, env, [episode])
-            if result["success"]:  # success ends the episode: its last step is the success
-                demos.append((*episode, result["steps"]))
+            if result["success"] and result["success_step"] > 0:  # L: its first success (the bucket's episode goes on after it)
+                demos.append((*episode, result["success_step"]))
             if len(demos) == count:
                 return demos
     finally:

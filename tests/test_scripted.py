@@ -251,3 +251,19 @@ def test_bucket_failure_benchmark_replays_the_noise_curve_episodes(monkeypatch, 
     expected = solve("bucket", "seen", 1, 0, object_names=[name], progress=False, action_noise=0.05)
     assert seen["episodes"] == 1 and seen["success_rate"] == expected["success_rate"]
     assert sum(seen["failures"].values()) == round(1 - seen["success_rate"])
+
+
+def test_stage_timeline_orders_the_experts_stages_and_counts_steps_as_the_episode_does(monkeypatch, load_benchmark):
+    """benchmarks/experts/stage_timeline.py: on a 40-step laptop episode (fast mode) the expert reaches stage 2
+    within it, each stage's first step is after the one before, and none is past the episode's end."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")
+    bench = load_benchmark("stage_timeline")
+    assert bench.first([1, 1, 2, 3, 2], 2) == 3 and bench.first([1, 1, 2, 3, 2], 3) == 4
+    assert bench.first([1, 2], 3) is None
+    out = bench.main(["--task", "laptop"])
+    episode, = out["episodes"]
+    assert episode["steps"] == 40 and episode["first_stage2"] is not None
+    reached = [episode[k] for k in bench.KEYS if episode[k] is not None]
+    assert reached == sorted(reached) and reached[-1] <= episode["steps"]
+    assert out["summary"]["first_stage2"] == {"reached": 1, "of": 1, "min": episode["first_stage2"],
+                                              "median": float(episode["first_stage2"]), "max": episode["first_stage2"]}

@@ -59,7 +59,8 @@ def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on
             total += float(reward)
             obs, done, t = next_obs, terminated or truncated, t + 1
         results.append({"object": info["object_name"], "seed": seed, "success": success,
-                        "success_step": success_step, "max_stage": max_stage, "return": total, "steps": t, "stages": stages})
+                        "success_step": success_step, "max_stage": max_stage, "return": total, "steps": t,
+                        "stages": stages})
     return results
 
 

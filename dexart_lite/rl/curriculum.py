@@ -177,7 +177,8 @@ def find_demos(task: str, count: int, split: str = "seen", seed: int = 0, env_kw
     try:
         for episode in solve_episodes(names, max_tries * math.ceil(count / len(names)), seed):
             result, = run_episodes(policy, env, [episode])
-            if result["success"] and result["success_step"] > 0:  # L: its first success (the bucket's episode goes on after it)
+            # L: its first success (the bucket's episode goes on after it)
+            if result["success"] and result["success_step"] > 0:
                 demos.append((*episode, result["success_step"]))
             if len(demos) == count:
                 return demos

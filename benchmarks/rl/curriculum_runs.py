@@ -130,7 +130,7 @@ RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_fl
 RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}
 # student_anchored_floor_reverse: the same from the experts' states, for buckets, whose students never lift a bucket
 # from the true reset (so PPO from the reset collects no success to learn from): RFCL's reverse curriculum on 11
-# (seed, object) pairs the scripted expert solves, each start frontier first one step before the expert's success
+# (seed, object) pairs the scripted expert solves, each start frontier first one step before its first success
 # and moved back 5 steps after 3 successes in a row from it; 10 % of the episodes from the true reset
 RECIPES["student_anchored_floor_reverse"] = {**RECIPES["student_anchored_floor"], "curriculum": "reverse",
                                              "curriculum_demos": 11, "curriculum_step": 5}

@@ -44,21 +44,21 @@ def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on
             policy.reset()
         if on_reset is not None:
             on_reset(obs, info)
-        success, max_stage, total, stages = bool(info["success"]), int(info["stage"]), 0.0, []
-        done, t, success_step = False, 0, 0 if success else None
+        success_step = 0 if info["success"] else None  # steps taken at the first success (None: not yet)
+        max_stage, total, stages = int(info["stage"]), 0.0, []
+        done, t = False, 0
         while not done:
             action = policy(obs)
             next_obs, reward, terminated, truncated, info = env.step(action)
             if on_step is not None:
                 on_step(obs, action, reward, next_obs, info, t)
-            if not success and info["success"]:
+            if success_step is None and info["success"]:
                 success_step = t + 1
-            success = success or bool(info["success"])
             stages.append(int(info["stage"]))
             max_stage = max(max_stage, stages[-1])
             total += float(reward)
             obs, done, t = next_obs, terminated or truncated, t + 1
-        results.append({"object": info["object_name"], "seed": seed, "success": success,
+        results.append({"object": info["object_name"], "seed": seed, "success": success_step is not None,
                         "success_step": success_step, "max_stage": max_stage, "return": total, "steps": t,
                         "stages": stages})
     return results

@@ -134,6 +134,11 @@ RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anc
 # and moved back 5 steps after 3 successes in a row from it; 10 % of the episodes from the true reset
 RECIPES["student_anchored_floor_reverse"] = {**RECIPES["student_anchored_floor"], "curriculum": "reverse",
                                              "curriculum_demos": 11, "curriculum_step": 5}
+# student_anchored_floor_reverse_eager: the same with the frontier moved back after ONE success from it (Salimans & Chen
+# move theirs once 20 % of the rollouts from it succeed). RFCL's 3 in a row suits SAC's high success from the frontier;
+# at PPO's 0.2-0.5 from the bucket frontier (item 25) 3 in a row needs ~10-25 tries, and the frontier stalled near 140
+RECIPES["student_anchored_floor_reverse_eager"] = {**RECIPES["student_anchored_floor_reverse"],
+                                                   "curriculum_successes": 1}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
 # outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against

@@ -437,3 +437,19 @@ def test_a_student_variant_recipe_starts_from_its_own_student_which_differs_from
     wide = bench.config("toilet", "cloud", "student_erase_anchored_floor", 0, 400,
                         Namespace(**{**vars(args), "workers": 8, "device": "cuda"}))
     assert (wide.workers, wide.device) == (8, "cuda")  # --workers / --device reach the PPO config
+
+
+def test_success_from_h_replays_the_demonstration_so_the_expert_still_succeeds_from_every_h(load_benchmark):
+    """benchmarks/rl/success_from_h.py: the expert handed its own episode back after h steps (exact replay, the same
+    expert instance going on) succeeds from every h, on every demonstration; a policy that is neither expert nor
+    label=checkpoint is refused with the valid forms."""
+    bench = load_benchmark("success_from_h")
+    out = bench.main(["--task", "laptop", "--policy", "expert", "--demos", "1", "--h", "0", "60"])
+    demo, = out["demos"]
+    assert demo[2] > 60  # the guide's first success comes after the largest h
+    assert out["policies"]["expert"]["by_h"] == {"0": {"success": 1.0, "per_demo": [True]},
+                                                 "60": {"success": 1.0, "per_demo": [True]}}
+    with pytest.raises(SystemExit):
+        bench.main(["--task", "laptop", "--policy", "student=no/such/checkpoint.pt"])
+    with pytest.raises(ValueError, match="first success"):
+        bench.main(["--task", "laptop", "--policy", "expert", "--demos", "1", "--h", "0", "400"])

@@ -1,0 +1,131 @@
+"""Where does a policy fail? Its success when it takes over from the scripted expert after h steps.
+
+    python benchmarks/rl/success_from_h.py --task bucket --jobs 2 \\
+        --policy student_s0=runs/curriculum/bucket_cloud_student_s0/checkpoint.pt \\
+        --policy rl_s0=runs/curriculum/bucket_cloud_student_anchored_floor_reverse_s0/checkpoint.pt \\
+        --h 0 50 100 125 140 155 170 --json benchmarks/results/rl/bucket_success_from_h.json
+
+The episodes are the reverse curriculum's demonstrations (``rl/curriculum.find_demos``: ``--demos`` (reset seed,
+object) pairs of the seen split that the noise-free expert solves, the ``solve`` order from ``--seed``). For each
+policy and each ``h`` every demonstration is replayed: the expert acts ``h`` steps from ``reset(seed)`` (exact replay,
+``GuidedStart.start``), then the policy acts, deterministically, to the end of the episode; success counts at any
+step after the hand-over. ``expert`` as a policy continues the same expert (its success is 1 from every ``h``: a
+check of the replay). A policy that succeeds from late ``h`` and not from early ones has learned the end of the
+task and not its beginning; the step where its success falls says which phase it lacks (compare with the expert's
+``benchmarks/experts/stage_timeline.py``).
+
+Written to ``--json``: task, demos ([seed, object, first success step]), h, policies (label: checkpoint, and per h
+the success rate and the per-demonstration successes), command, machine; ``--png``: success against h.
+"""
+
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+import multiprocessing
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import dexart_lite
+from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
+from dexart_lite.utils import provenance, save_figure, write_json
+
+
+def parse_policy(text: str) -> tuple[str, str]:
+    """``label=checkpoint`` (a file or ``zoo:<task>``) or ``expert``."""
+    if text == "expert":
+        return "expert", "expert"
+    from dexart_lite.rl.checkpoint import checkpoint_path
+
+    label, sep, path = text.partition("=")
+    if not sep or not label or not checkpoint_path(path).is_file():
+        raise argparse.ArgumentTypeError(f"--policy takes label=checkpoint (an existing file or zoo:<task>) or "
+                                         f"'expert', got {text!r}")
+    return label, str(checkpoint_path(path))
+
+
+def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list[int]) -> dict:
+    """Per ``h``: the success of ``checkpoint``'s deterministic policy (or the expert's, ``checkpoint="expert"``) on
+    every demonstration after the expert's first ``h`` steps."""
+    from dexart_lite.envs import make
+    from dexart_lite.rl.evaluate import load_policy
+    from dexart_lite.rl.checkpoint import policy_function
+
+    torch.set_num_threads(1)
+    env_kwargs = {}
+    if checkpoint != "expert":
+        actor_critic, _, env_kwargs = load_policy(checkpoint)
+        policy = policy_function(actor_critic)
+    env = GuidedStart(make(task, split="seen", **{"point_noise": True, "camera_noise": True, **env_kwargs}),
+                      guide_render=False)
+    expert = make_guide(env.unwrapped, "expert") if checkpoint == "expert" else None
+    rows = {}
+    try:
+        for h in hs:
+            successes = []
+            for seed, name, _ in demos:
+                obs, info = env.start(seed, h, name)
+                # the expert goes on as the same instance that led (a new one would start its solver mid-episode)
+                act = (env.guide if h > 0 else expert) if checkpoint == "expert" else policy
+                success, done = bool(info["success"]), False
+                while not done:
+                    obs, _, terminated, truncated, info = env.step(act(obs))
+                    success, done = success or bool(info["success"]), terminated or truncated
+                successes.append(success)
+            rows[str(h)] = {"success": float(np.mean(successes)), "per_demo": successes}
+    finally:
+        env.close()
+    return {"label": label, "checkpoint": checkpoint, "by_h": rows}
+
+
+def plot(result: dict, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for label, entry in result["policies"].items():
+        ax.plot(result["h"], [entry["by_h"][str(h)]["success"] for h in result["h"]], marker="o", label=label)
+    ax.set_xlabel("expert steps before the hand-over (h)")
+    ax.set_ylabel("success after the hand-over")
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_title(f"{result['task']}: {len(result['demos'])} demonstrations (seen objects)")
+    ax.legend(fontsize=7)
+    save_figure(fig, path)
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="bucket", choices=dexart_lite.TASKS)
+    parser.add_argument("--policy", type=parse_policy, action="append", required=True,
+                        help="label=checkpoint, or expert; repeat for several")
+    parser.add_argument("--h", type=int, nargs="+", default=[0, 50, 100, 125, 140, 155, 170])
+    parser.add_argument("--demos", type=int, default=11, help="demonstrations (one per seen object by default)")
+    parser.add_argument("--seed", type=int, default=0, help="the demonstrations' solve seed")
+    parser.add_argument("--jobs", type=int, default=1, help="policies evaluated at once")
+    parser.add_argument("--json", type=Path)
+    parser.add_argument("--png", type=Path)
+    args = parser.parse_args(argv)
+    if min(args.h) < 0:
+        raise ValueError(f"--h must be >= 0, got {args.h}")
+    demos = find_demos(args.task, args.demos, "seen", args.seed)
+    if max(args.h) >= min(length for *_, length in demos):
+        raise ValueError(f"--h must stay below the demonstrations' first success ({min(l for *_, l in demos)} steps)")
+    jobs = [(args.task, label, path, demos, args.h) for label, path in args.policy]
+    with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        results = list(pool.map(success_from_h, *zip(*jobs))) if args.jobs > 1 else \
+            [success_from_h(*job) for job in jobs]
+    result = {"task": args.task, "demos": [list(d) for d in demos], "h": args.h,
+              "policies": {r["label"]: {"checkpoint": r["checkpoint"], "by_h": r["by_h"]} for r in results},
+              **provenance(__file__, argv)}
+    for label, entry in result["policies"].items():
+        print(label, " ".join(f"h={h}: {entry['by_h'][str(h)]['success']:.2f}" for h in args.h))
+    if args.json:
+        write_json(args.json, result)
+    if args.png:
+        plot(result, args.png)
+    return result
+
+
+if __name__ == "__main__":
+    main()

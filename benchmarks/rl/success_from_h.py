@@ -21,8 +21,8 @@ the success rate and the per-demonstration successes), command, machine; ``--png
 from __future__ import annotations
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor
 import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -50,8 +50,8 @@ def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list
     """Per ``h``: the success of ``checkpoint``'s deterministic policy (or the expert's, ``checkpoint="expert"``) on
     every demonstration after the expert's first ``h`` steps."""
     from dexart_lite.envs import make
-    from dexart_lite.rl.evaluate import load_policy
     from dexart_lite.rl.checkpoint import policy_function
+    from dexart_lite.rl.evaluate import load_policy
 
     torch.set_num_threads(1)
     env_kwargs = {}

@@ -25,11 +25,13 @@ import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import torch
 
 import dexart_lite
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
+from dexart_lite.rollout import run_episodes
 from dexart_lite.utils import provenance, save_figure, write_json
 
 
@@ -60,24 +62,30 @@ def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list
         policy = policy_function(actor_critic)
     env = GuidedStart(make(task, split="seen", **{"point_noise": True, "camera_noise": True, **env_kwargs}),
                       guide_render=False)
-    expert = make_guide(env.unwrapped, "expert") if checkpoint == "expert" else None
+    if checkpoint == "expert":  # it goes on as the instance that led (a new one would start its solver mid-episode)
+        expert = make_guide(env.unwrapped, "expert")  # for h = 0, where no guide has acted yet
+        policy = lambda obs: (env.guide or expert)(obs)  # noqa: E731
+    episodes = [(seed, name) for seed, name, _ in demos]
     rows = {}
     try:
         for h in hs:
-            successes = []
-            for seed, name, _ in demos:
-                obs, info = env.start(seed, h, name)
-                # the expert goes on as the same instance that led (a new one would start its solver mid-episode)
-                act = (env.guide if h > 0 else expert) if checkpoint == "expert" else policy
-                success, done = bool(info["success"]), False
-                while not done:
-                    obs, _, terminated, truncated, info = env.step(act(obs))
-                    success, done = success or bool(info["success"]), terminated or truncated
-                successes.append(success)
+            successes = [r["success"] for r in run_episodes(policy, HandOver(env, h), episodes)]
             rows[str(h)] = {"success": float(np.mean(successes)), "per_demo": successes}
     finally:
         env.close()
     return {"label": label, "checkpoint": checkpoint, "by_h": rows}
+
+
+class HandOver(gym.Wrapper):
+    """``reset(seed, object)`` is the state the expert leaves after ``h`` steps from that reset (``GuidedStart.start``),
+    so the rollout layer's episodes (``rollout.run_episodes``) begin at the hand-over."""
+
+    def __init__(self, env: GuidedStart, h: int):
+        super().__init__(env)
+        self.h = h
+
+    def reset(self, *, seed=None, options=None):
+        return self.env.start(seed, self.h, (options or {}).get("object"))
 
 
 def plot(result: dict, path: Path) -> None:

@@ -139,6 +139,19 @@ RECIPES["student_anchored_floor_reverse"] = {**RECIPES["student_anchored_floor"]
 # at PPO's 0.2-0.5 from the bucket frontier (item 25) 3 in a row needs ~10-25 tries, and the frontier stalled near 140
 RECIPES["student_anchored_floor_reverse_eager"] = {**RECIPES["student_anchored_floor_reverse"],
                                                    "curriculum_successes": 1}
+# student_anchored_floor_reverse_std03: the same with an exploration std of 0.03 instead of 0.1 (log std -3.5). The
+# expert itself, handed its own episode after h steps and acting with executed-action noise of std 0.1, lifts 0.00-0.09
+# of the buckets from h <= 100 and 0.73 from h = 125-140 (benchmarks/results/rl/bucket_expert_noise_from_h.json): the
+# raise does not survive std-0.1 exploration, whoever's mean it is, and the std-0.1 frontier stopped at ~130. At std
+# 0.03 the expert lifts 0.64 from the reset and 0.91 from h = 100. Between Gaussians of one std the KL is
+# sum((delta mu)^2) / (2 std^2), so the anchor's weight and floor are multiplied by (0.03 / 0.1)^2 and the KL early stop
+# divided by it: they hold the policy's mean actions as near to the student, and let them move as far per batch, as at
+# std 0.1 (PPO's ratio clip, 0.2, is unchanged and so binds sooner in action units)
+_STD_RATIO2 = (0.03 / 0.1) ** 2
+_BASE = RECIPES["student_anchored_floor_reverse"]
+RECIPES["student_anchored_floor_reverse_std03"] = {
+    **_BASE, "init_log_std": round(math.log(0.03), 4), "anchor_coef": _BASE["anchor_coef"] * _STD_RATIO2,
+    "anchor_floor": _BASE["anchor_floor"] * _STD_RATIO2, "target_kl": round(_BASE["target_kl"] / _STD_RATIO2, 4)}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
 # outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against

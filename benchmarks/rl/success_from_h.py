@@ -4,6 +4,8 @@
         --policy student_s0=runs/curriculum/bucket_cloud_student_s0/checkpoint.pt \\
         --policy rl_s0=runs/curriculum/bucket_cloud_student_anchored_floor_reverse_s0/checkpoint.pt \\
         --h 0 50 100 125 140 155 170 --json benchmarks/results/rl/bucket_success_from_h.json
+    python benchmarks/rl/success_from_h.py --task bucket --jobs 2 --policy expert --noise 0 0.03 0.05 0.1 \\
+        --h 0 50 100 125 140 155 --json benchmarks/results/rl/bucket_expert_noise_from_h.json
 
 The episodes are the reverse curriculum's demonstrations (``rl/curriculum.find_demos``: ``--demos`` (reset seed,
 object) pairs of the seen split that the noise-free expert solves, the ``solve`` order from ``--seed``). For each
@@ -12,10 +14,14 @@ policy and each ``h`` every demonstration is replayed: the expert acts ``h`` ste
 step after the hand-over. ``expert`` as a policy continues the same expert (its success is 1 from every ``h``: a
 check of the replay). A policy that succeeds from late ``h`` and not from early ones has learned the end of the
 task and not its beginning; the step where its success falls says which phase it lacks (compare with the expert's
-``benchmarks/experts/stage_timeline.py``).
+``benchmarks/experts/stage_timeline.py``). ``--noise``: after the hand-over the executed action is the policy's plus
+Gaussian noise of that std, clipped to [-1, 1] (``rollout.Noisy``; PPO's exploration, whose actions are drawn around
+the mean with the policy's std); the expert with noise says from which step on a task tolerates a learner's
+exploration. The noise has its own generator, seeded per ``h``, so policies at the same std meet the same draws.
 
-Written to ``--json``: task, demos ([seed, object, first success step]), h, policies (label: checkpoint, and per h
-the success rate and the per-demonstration successes), command, machine; ``--png``: success against h.
+Written to ``--json``: task, demos ([seed, object, first success step]), h, noise, policies (label, with ``+noise<std>``
+when the std is not 0: checkpoint, noise, and per h the success rate and the per-demonstration successes), command,
+machine; ``--png``: success against h.
 """
 
 from __future__ import annotations
@@ -31,7 +37,7 @@ import torch
 
 import dexart_lite
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
-from dexart_lite.rollout import run_episodes
+from dexart_lite.rollout import noisy, run_episodes
 from dexart_lite.utils import provenance, save_figure, write_json
 
 
@@ -48,9 +54,10 @@ def parse_policy(text: str) -> tuple[str, str]:
     return label, str(checkpoint_path(path))
 
 
-def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list[int]) -> dict:
+def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list[int], noise: float = 0.0) -> dict:
     """Per ``h``: the success of ``checkpoint``'s deterministic policy (or the expert's, ``checkpoint="expert"``) on
-    every demonstration after the expert's first ``h`` steps."""
+    every demonstration after the expert's first ``h`` steps, with executed-action noise of std ``noise`` after the
+    hand-over."""
     from dexart_lite.envs import make
     from dexart_lite.rl.checkpoint import policy_function
     from dexart_lite.rl.evaluate import load_policy
@@ -69,11 +76,13 @@ def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list
     rows = {}
     try:
         for h in hs:
-            successes = [r["success"] for r in run_episodes(policy, HandOver(env, h), episodes)]
+            acting = noisy(policy, noise, np.random.default_rng(h)) if noise > 0 else policy
+            successes = [r["success"] for r in run_episodes(acting, HandOver(env, h), episodes)]
             rows[str(h)] = {"success": float(np.mean(successes)), "per_demo": successes}
     finally:
         env.close()
-    return {"label": label, "checkpoint": checkpoint, "by_h": rows}
+    return {"label": label if noise == 0 else f"{label}+noise{noise:g}", "checkpoint": checkpoint, "noise": noise,
+            "by_h": rows}
 
 
 class HandOver(gym.Wrapper):
@@ -108,6 +117,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--policy", type=parse_policy, action="append", required=True,
                         help="label=checkpoint, or expert; repeat for several")
     parser.add_argument("--h", type=int, nargs="+", default=[0, 50, 100, 125, 140, 155, 170])
+    parser.add_argument("--noise", type=float, nargs="+", default=[0.0],
+                        help="std(s) of executed-action noise after the hand-over; every policy at each")
     parser.add_argument("--demos", type=int, default=11, help="demonstrations (one per seen object by default)")
     parser.add_argument("--seed", type=int, default=0, help="the demonstrations' solve seed")
     parser.add_argument("--jobs", type=int, default=1, help="policies evaluated at once")
@@ -116,15 +127,18 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     if min(args.h) < 0:
         raise ValueError(f"--h must be >= 0, got {args.h}")
+    if not all(np.isfinite(args.noise)) or min(args.noise) < 0:
+        raise ValueError(f"--noise takes stds >= 0, got {args.noise}")
     demos = find_demos(args.task, args.demos, "seen", args.seed)
     if max(args.h) >= min(length for *_, length in demos):
         raise ValueError(f"--h must stay below the demonstrations' first success ({min(l for *_, l in demos)} steps)")
-    jobs = [(args.task, label, path, demos, args.h) for label, path in args.policy]
+    jobs = [(args.task, label, path, demos, args.h, sigma) for label, path in args.policy for sigma in args.noise]
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         results = list(pool.map(success_from_h, *zip(*jobs))) if args.jobs > 1 else \
             [success_from_h(*job) for job in jobs]
-    result = {"task": args.task, "demos": [list(d) for d in demos], "h": args.h,
-              "policies": {r["label"]: {"checkpoint": r["checkpoint"], "by_h": r["by_h"]} for r in results},
+    result = {"task": args.task, "demos": [list(d) for d in demos], "h": args.h, "noise": args.noise,
+              "policies": {r["label"]: {"checkpoint": r["checkpoint"], "noise": r["noise"], "by_h": r["by_h"]}
+                           for r in results},
               **provenance(__file__, argv)}
     for label, entry in result["policies"].items():
         print(label, " ".join(f"h={h}: {entry['by_h'][str(h)]['success']:.2f}" for h in args.h))

@@ -160,6 +160,20 @@ def test_a_reverse_frontier_moves_back_after_k_successes_in_a_row_and_never_belo
     assert cur.frontiers.tolist() == [0, 29]  # 6 -> 1 -> 0, not -4
 
 
+def test_with_backoff_a_frontier_moves_forward_after_k_failures_in_a_row_and_never_past_the_guides_success():
+    cur = Curriculum(CurriculumConfig("reverse", demos=1, step=5, successes=3, backoff=2), [(0, "a", 12)])
+    cur.frontiers[:] = 3
+    cur.update(batch([3, 3], [0, 0], [False, True]))  # a success resets the failure count
+    assert cur.frontiers.tolist() == [3] and cur.failures.tolist() == [0]
+    cur.update(batch([3, 4, 3], [0, 0, 0], [False, False, False]))  # the start past the frontier does not count
+    assert cur.frontiers.tolist() == [8] and cur.failures.tolist() == [0]
+    cur.update(batch([8, 8], [0, 0], [False, False]))
+    assert cur.frontiers.tolist() == [11]  # 8 + 5 capped at L - 1 = 11
+    rfcl = Curriculum(CurriculumConfig("reverse", demos=1), [(0, "a", 12)])  # backoff 0: failures never move it
+    rfcl.update(batch([11] * 20, [0] * 20, [False] * 20))
+    assert rfcl.frontiers.tolist() == [11]
+
+
 def test_reverse_starts_are_drawn_just_after_the_frontier_and_true_resets_at_their_rate():
     level = {"schedule": "reverse", "demos": [(0, "laptop_11cbb00f39", 200)], "frontiers": [100],
              "true_resets": 0.25}
@@ -182,12 +196,20 @@ def test_the_curriculum_state_round_trips_and_refuses_another_runs():
     other = Curriculum(CurriculumConfig("reverse", demos=2, step=8), [(0, "a", 12), (1, "b", 30)])
     with pytest.raises(ValueError, match="does not match"):
         other.load_state_dict(cur.state_dict())
+    # a checkpoint from before --curriculum-backoff existed (no "backoff", no "failures") resumes with backoff 0 ...
+    old = cur.state_dict()
+    old["config"].pop("backoff"), old.pop("failures")
+    again.load_state_dict(old)
+    assert again.frontiers.tolist() == [6, 29] and again.failures.tolist() == [0, 0]
+    backing = Curriculum(CurriculumConfig("reverse", demos=2, backoff=4), [(0, "a", 12), (1, "b", 30)])
+    with pytest.raises(ValueError, match="does not match"):  # ... and not as a run that backs off
+        backing.load_state_dict(old)
 
 
 @pytest.mark.parametrize("field, value, message", [
     ("schedule", "backwards", "valid choices"), ("guide", "oracle", "valid choices"), ("horizon", -1, "H must be"),
     ("true_resets", 1.5, r"fraction in \[0, 1\]"), ("true_resets", -0.1, r"fraction in \[0, 1\]"),
-    ("step", 0, "step must be >= 1")])
+    ("step", 0, "step must be >= 1"), ("backoff", -1, "backoff must be >= 0")])
 def test_bad_curriculum_values_name_the_valid_ones(field, value, message):
     with pytest.raises(ValueError, match=message):
         CurriculumConfig(**{field: value}).validate()

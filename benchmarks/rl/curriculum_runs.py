@@ -152,6 +152,12 @@ _BASE = RECIPES["student_anchored_floor_reverse"]
 RECIPES["student_anchored_floor_reverse_std03"] = {
     **_BASE, "init_log_std": round(math.log(0.03), 4), "anchor_coef": _BASE["anchor_coef"] * _STD_RATIO2,
     "anchor_floor": _BASE["anchor_floor"] * _STD_RATIO2, "target_kl": round(_BASE["target_kl"] / _STD_RATIO2, 4)}
+# student_anchored_floor_reverse_std03_backoff: the same with a frontier that also moves forward 5 steps after 6
+# failures in a row from it (Florensa et al. keep starts at 0.1-0.9 success; RFCL only moves back). At std 0.03 the
+# collected success fell from 0.6 to 0.2 within 150k frames and nothing brought it back (docs item 27); 3 successes
+# in a row back, 6 failures forward move it equally often where success from the frontier is ~0.35. (Defined; not run)
+RECIPES["student_anchored_floor_reverse_std03_backoff"] = {**RECIPES["student_anchored_floor_reverse_std03"],
+                                                            "curriculum_backoff": 6}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
 # outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against

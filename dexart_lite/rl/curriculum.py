@@ -14,7 +14,10 @@ Schedules (``SCHEDULES``):
   ``(reset seed, object)`` pair on which the guide succeeds at step ``L``, keep a start *frontier*,
   first ``L - 1`` (one step before the guide's success). Starts are drawn at ``frontier + k`` with
   ``k`` = 0..4 at probabilities 1/2, 1/4, 1/8, 1/16, 1/16; after ``successes`` successes in a row from
-  exactly the frontier it moves back by ``step`` (never below 0). A fraction ``true_resets`` of the
+  exactly the frontier it moves back by ``step`` (never below 0). With ``backoff`` > 0 it also moves *forward*
+  by ``step`` (never past ``L - 1``) after ``backoff`` failures in a row from it, so that a frontier the
+  learner can no longer finish from comes back to starts it can (Florensa et al. 2017 keep the starts at
+  0.1-0.9 success); 0 (RFCL): frontiers only move back. A fraction ``true_resets`` of the
   episodes start from the true reset, and once 90 % of the frontiers have reached 0 every episode does.
 
 Where the state lives: the schedule (``Curriculum``: frontiers, streaks, counts) lives in the trainer and
@@ -197,6 +200,7 @@ class CurriculumConfig:
     demos: int = 11  # reverse: demonstrations (one per seen object by default)
     step: int = 5  # reverse: steps the frontier moves back
     successes: int = 3  # reverse: successes in a row from the frontier before it moves
+    backoff: int = 0  # reverse: failures in a row from the frontier before it moves forward (0: never, RFCL)
     true_resets: float = 0.1  # reverse: share of episodes from the true reset
     guide: str = "expert"
 
@@ -208,6 +212,8 @@ class CurriculumConfig:
         for name in ("demos", "step", "successes"):
             if getattr(self, name) < 1:
                 raise ValueError(f"curriculum {name} must be >= 1, got {getattr(self, name)}")
+        if self.backoff < 0:
+            raise ValueError(f"curriculum backoff must be >= 0 (0: frontiers never move forward), got {self.backoff}")
         if not 0.0 <= self.true_resets <= 1.0:
             raise ValueError(f"curriculum true_resets is a fraction in [0, 1], got {self.true_resets}")
 
@@ -226,6 +232,7 @@ class Curriculum:
         self.cfg, self.demos = cfg, [tuple(d) for d in (demos or [])]
         self.frontiers = np.array([length - 1 for _, _, length in self.demos], dtype=np.int64)
         self.streaks = np.zeros(len(self.demos), dtype=np.int64)
+        self.failures = np.zeros(len(self.demos), dtype=np.int64)  # failures in a row from the frontier (backoff)
 
     def level(self) -> dict:
         if self.cfg.schedule == "uniform":
@@ -248,9 +255,13 @@ class Curriculum:
             if not counts:
                 continue
             self.streaks[demo] = self.streaks[demo] + 1 if ok else 0
+            self.failures[demo] = 0 if ok else self.failures[demo] + 1
             if self.streaks[demo] >= self.cfg.successes:
                 self.frontiers[demo] = max(0, self.frontiers[demo] - self.cfg.step)
                 self.streaks[demo] = 0
+            elif self.cfg.backoff and self.failures[demo] >= self.cfg.backoff:
+                self.frontiers[demo] = min(self.demos[demo][2] - 1, self.frontiers[demo] + self.cfg.step)
+                self.failures[demo] = 0
         return self.stats(starts, success, at_frontier)
 
     def stats(self, starts: list, success: list, at_frontier: list) -> dict:
@@ -270,14 +281,17 @@ class Curriculum:
 
     def state_dict(self) -> dict:
         return {"config": vars(self.cfg).copy(), "demos": self.demos, "frontiers": self.frontiers.tolist(),
-                "streaks": self.streaks.tolist()}
+                "streaks": self.streaks.tolist(), "failures": self.failures.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
-        if state["config"] != vars(self.cfg) or [tuple(d) for d in state["demos"]] != self.demos:
-            raise ValueError(f"--resume: the checkpoint's curriculum {state['config']} does not match this run's "
+        # a checkpoint written before a setting existed ran with its default (backoff 0: no failure counts)
+        config = {**vars(CurriculumConfig()), **state["config"]}
+        if config != vars(self.cfg) or [tuple(d) for d in state["demos"]] != self.demos:
+            raise ValueError(f"--resume: the checkpoint's curriculum {config} does not match this run's "
                              f"{vars(self.cfg)}")
         self.frontiers = np.array(state["frontiers"], dtype=np.int64)
         self.streaks = np.array(state["streaks"], dtype=np.int64)
+        self.failures = np.array(state.get("failures", [0] * len(self.demos)), dtype=np.int64)
 
 
 def send_level(collector, level: dict) -> None:

@@ -171,6 +171,9 @@ class PPOConfig:
     curriculum_step: int = field(default=5, metadata={"help": "reverse: steps a frontier moves back (RFCL: 4-8)"})
     curriculum_successes: int = field(default=3, metadata={"help": "reverse: successes in a row from a frontier "
                                       "before it moves (RFCL: 3)"})
+    curriculum_backoff: int = field(default=0, metadata={"help": "reverse: failures in a row from a frontier before it "
+                                    "moves forward by --curriculum-step (0: never, RFCL; Florensa et al. keep starts "
+                                    "at 0.1-0.9 success)"})
     curriculum_true_resets: float = field(default=0.1, metadata={"help": "reverse: share of episodes that start "
                                           "from the true reset (all once 90%% of the frontiers are at 0)"})
     guide: str = field(default="expert", metadata={"help": "who acts before the learner: expert (the scripted, "
@@ -338,7 +341,7 @@ def validate(cfg: PPOConfig) -> None:
 
 def curriculum_config(cfg: PPOConfig) -> CurriculumConfig:
     return CurriculumConfig(cfg.curriculum, cfg.curriculum_horizon, cfg.curriculum_demos, cfg.curriculum_step,
-                            cfg.curriculum_successes, cfg.curriculum_true_resets, cfg.guide)
+                            cfg.curriculum_successes, cfg.curriculum_backoff, cfg.curriculum_true_resets, cfg.guide)
 
 
 def make_curriculum(cfg: PPOConfig) -> Curriculum | None:

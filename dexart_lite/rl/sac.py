@@ -107,6 +107,7 @@ class SACConfig:
     curriculum_demos: int = same_as_ppo("curriculum_demos", 11)
     curriculum_step: int = same_as_ppo("curriculum_step", 5)
     curriculum_successes: int = same_as_ppo("curriculum_successes", 3)
+    curriculum_backoff: int = same_as_ppo("curriculum_backoff", 0)
     curriculum_true_resets: float = same_as_ppo("curriculum_true_resets", 0.1)
     guide: str = same_as_ppo("guide", "expert")
     guide_render: bool = same_as_ppo("guide_render", False)

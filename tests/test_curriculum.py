@@ -198,7 +198,7 @@ def test_the_curriculum_state_round_trips_and_refuses_another_runs():
         other.load_state_dict(cur.state_dict())
     # a checkpoint from before --curriculum-backoff existed (no "backoff", no "failures") resumes with backoff 0 ...
     old = cur.state_dict()
-    old["config"].pop("backoff"), old.pop("failures")
+    del old["config"]["backoff"], old["failures"]
     again.load_state_dict(old)
     assert again.frontiers.tolist() == [6, 29] and again.failures.tolist() == [0, 0]
     backing = Curriculum(CurriculumConfig("reverse", demos=2, backoff=4), [(0, "a", 12), (1, "b", 30)])

@@ -19,10 +19,14 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
+from dexart_lite.utils import check_choice
+
 Policy = Callable[[dict], np.ndarray]  # gymnasium observation -> action (22,)
 # on_step(obs, action, reward, next_obs, info, t): obs is the observation the action was chosen on,
 # info the env's info after the step, t the step index (0 for the first action of an episode)
 OnStep = Callable[[dict, np.ndarray, float, dict, dict, int], None]
+# the action dimensions a ``Noisy`` policy perturbs: the 6-D palm twist comes first, the hand's targets after it
+NOISE_PARTS = {"all": slice(None), "arm": slice(0, 6), "hand": slice(6, None)}
 
 
 def run_episodes(policy: Policy, env, episodes: list[tuple[int, str | None]], on_step: OnStep | None = None,
@@ -68,13 +72,17 @@ class Noisy:
     """``policy`` with Gaussian noise of std ``sigma`` added to its action, then clipped to [-1, 1].
 
     The action before the noise stays readable as ``label`` (the clean expert action of a
-    demonstration). ``rng`` is a ``numpy.random.Generator``, separate from the env's.
+    demonstration). ``rng`` is a ``numpy.random.Generator``, separate from the env's. ``part``
+    (``NOISE_PARTS``) perturbs only the palm twist (``arm``) or only the hand (``hand``); the other
+    dimensions are the policy's own (a full vector is still drawn, so the same ``rng`` seed gives the same
+    draws on the dimensions both parts share with ``all``).
     """
 
-    def __init__(self, policy: Policy, sigma: float, rng: np.random.Generator):
+    def __init__(self, policy: Policy, sigma: float, rng: np.random.Generator, part: str = "all"):
         if not (np.isfinite(sigma) and sigma >= 0):
             raise ValueError(f"noise must be a finite std >= 0, got {sigma}")
-        self.policy, self.sigma, self.rng = policy, float(sigma), rng
+        check_choice("noise part", part, NOISE_PARTS)
+        self.policy, self.sigma, self.rng, self.part = policy, float(sigma), rng, part
         self.label: np.ndarray | None = None
         self.privileged: np.ndarray | None = None
 
@@ -86,13 +94,16 @@ class Noisy:
         # float64, as the env computes: the executed action is the expert's exactly when sigma is 0
         self.label = np.asarray(self.policy(obs), dtype=np.float64)
         self.privileged = getattr(self.policy, "privileged", None)  # an expert's view of the state, if any
-        noise = self.rng.standard_normal(self.label.shape) if self.sigma > 0 else 0.0
+        noise = np.zeros_like(self.label)
+        if self.sigma > 0:
+            draw = self.rng.standard_normal(self.label.shape)
+            noise[NOISE_PARTS[self.part]] = draw[NOISE_PARTS[self.part]]
         return np.clip(self.label + self.sigma * noise, -1.0, 1.0)
 
 
-def noisy(policy: Policy, sigma: float, rng: np.random.Generator) -> Noisy:
-    """``policy`` with executed-action noise of std ``sigma``; see ``Noisy``."""
-    return Noisy(policy, sigma, rng)
+def noisy(policy: Policy, sigma: float, rng: np.random.Generator, part: str = "all") -> Noisy:
+    """``policy`` with executed-action noise of std ``sigma`` on ``part`` of the action; see ``Noisy``."""
+    return Noisy(policy, sigma, rng, part)
 
 
 def _summary(episodes: list[dict]) -> dict:

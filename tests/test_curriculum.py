@@ -464,7 +464,7 @@ def test_a_student_variant_recipe_starts_from_its_own_student_which_differs_from
 def test_success_from_h_replays_the_demonstration_so_the_expert_still_succeeds_from_every_h(load_benchmark):
     """benchmarks/rl/success_from_h.py: the expert handed its own episode back after h steps (exact replay, the same
     expert instance going on) succeeds from every h, on every demonstration; --noise adds each std as a policy of its
-    own; a policy that is neither expert nor label=checkpoint, or a negative std, is refused."""
+    own (--noise-on: on part of the action); a policy that is neither expert nor label=checkpoint, or a negative std, is refused."""
     bench = load_benchmark("success_from_h")
     out = bench.main(["--task", "laptop", "--policy", "expert", "--demos", "1", "--h", "0", "60", "--noise", "0", "0.5"])
     demo, = out["demos"]
@@ -472,7 +472,10 @@ def test_success_from_h_replays_the_demonstration_so_the_expert_still_succeeds_f
     assert out["policies"]["expert"]["by_h"] == {"0": {"success": 1.0, "per_demo": [True]},
                                                  "60": {"success": 1.0, "per_demo": [True]}}
     noisy = out["policies"]["expert+noise0.5"]  # each policy at each --noise std, labelled with it
-    assert noisy["noise"] == 0.5 and set(noisy["by_h"]) == {"0", "60"}
+    assert noisy["noise"] == 0.5 and set(noisy["by_h"]) == {"0", "60"} and out["noise_on"] == "all"
+    hand = bench.main(["--task", "laptop", "--policy", "expert", "--demos", "1", "--h", "60", "--noise", "0.5",
+                       "--noise-on", "hand"])  # --noise-on: the part of the action it perturbs, in the label
+    assert hand["noise_on"] == "hand" and list(hand["policies"]) == ["expert+noise0.5@hand"]
     with pytest.raises(SystemExit):
         bench.main(["--task", "laptop", "--policy", "student=no/such/checkpoint.pt"])
     with pytest.raises(ValueError, match="first success"):

@@ -4,6 +4,7 @@ Seeded and short: a few objects per task, one episode each (the full tables come
 ``dexart-lite solve``, see ``benchmarks/results/experts/solve_*.json``).
 """
 
+import numpy as np
 import pytest
 
 from dexart_lite.envs import make
@@ -101,6 +102,22 @@ def test_action_noise_of_ppo_init_breaks_the_solver():
 def test_bad_action_noise_is_rejected(noise):
     with pytest.raises(ValueError, match="action_noise must be a finite std >= 0"):
         solve("laptop", object_names=["laptop_11cbb00f39"], progress=False, action_noise=noise)
+
+
+def test_noise_on_one_part_of_the_action_leaves_the_other_part_exact():
+    """``rollout.Noisy(part=...)``: ``arm`` perturbs only the 6-D palm twist, ``hand`` only the 16 joint targets, each
+    with the very draws ``all`` puts there (same generator seed); an unknown part names the valid ones."""
+    from dexart_lite.rollout import Noisy
+
+    action = np.linspace(-0.5, 0.5, 22)
+    executed = {part: Noisy(lambda obs: action, 0.1, np.random.default_rng(3), part)({})
+                for part in ("all", "arm", "hand")}
+    assert np.array_equal(executed["arm"][6:], action[6:]) and np.array_equal(executed["hand"][:6], action[:6])
+    assert np.all(executed["arm"][:6] != action[:6]) and np.all(executed["hand"][6:] != action[6:])
+    assert np.array_equal(executed["arm"][:6], executed["all"][:6])
+    assert np.array_equal(executed["hand"][6:], executed["all"][6:])
+    with pytest.raises(ValueError, match="unknown noise part 'fingers'; valid choices: all, arm, hand"):
+        Noisy(lambda obs: action, 0.1, np.random.default_rng(3), "fingers")
 
 
 # ----------------------------------------------------------------------------- the imitable lid expert

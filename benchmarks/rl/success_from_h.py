@@ -18,10 +18,12 @@ task and not its beginning; the step where its success falls says which phase it
 Gaussian noise of that std, clipped to [-1, 1] (``rollout.Noisy``; PPO's exploration, whose actions are drawn around
 the mean with the policy's std); the expert with noise says from which step on a task tolerates a learner's
 exploration. The noise has its own generator, seeded per ``h``, so policies at the same std meet the same draws.
+``--noise-on arm`` / ``hand`` puts it on the palm twist (the first 6 action dimensions) or on the hand's targets only
+(``rollout.NOISE_PARTS``): which part of a policy's exploration a task tolerates.
 
-Written to ``--json``: task, demos ([seed, object, first success step]), h, noise, policies (label, with ``+noise<std>``
-when the std is not 0: checkpoint, noise, and per h the success rate and the per-demonstration successes), command,
-machine; ``--png``: success against h.
+Written to ``--json``: task, demos ([seed, object, first success step]), h, noise, noise_on, policies (label, with
+``+noise<std>`` when the std is not 0 and ``@arm`` / ``@hand`` after it with ``--noise-on``: checkpoint, noise, and
+per h the success rate and the per-demonstration successes), command, machine; ``--png``: success against h.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ import torch
 
 import dexart_lite
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
-from dexart_lite.rollout import noisy, run_episodes
+from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
 from dexart_lite.utils import provenance, save_figure, write_json
 
 
@@ -54,10 +56,11 @@ def parse_policy(text: str) -> tuple[str, str]:
     return label, str(checkpoint_path(path))
 
 
-def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list[int], noise: float = 0.0) -> dict:
+def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list[int], noise: float = 0.0,
+                   noise_on: str = "all") -> dict:
     """Per ``h``: the success of ``checkpoint``'s deterministic policy (or the expert's, ``checkpoint="expert"``) on
-    every demonstration after the expert's first ``h`` steps, with executed-action noise of std ``noise`` after the
-    hand-over."""
+    every demonstration after the expert's first ``h`` steps, with executed-action noise of std ``noise`` on the
+    ``noise_on`` part of the action (``rollout.NOISE_PARTS``) after the hand-over."""
     from dexart_lite.envs import make
     from dexart_lite.rl.checkpoint import policy_function
     from dexart_lite.rl.evaluate import load_policy
@@ -76,13 +79,13 @@ def success_from_h(task: str, label: str, checkpoint: str, demos: list, hs: list
     rows = {}
     try:
         for h in hs:
-            acting = noisy(policy, noise, np.random.default_rng(h)) if noise > 0 else policy
+            acting = noisy(policy, noise, np.random.default_rng(h), noise_on) if noise > 0 else policy
             successes = [r["success"] for r in run_episodes(acting, HandOver(env, h), episodes)]
             rows[str(h)] = {"success": float(np.mean(successes)), "per_demo": successes}
     finally:
         env.close()
-    return {"label": label if noise == 0 else f"{label}+noise{noise:g}", "checkpoint": checkpoint, "noise": noise,
-            "by_h": rows}
+    suffix = "" if noise == 0 else f"+noise{noise:g}" + ("" if noise_on == "all" else f"@{noise_on}")
+    return {"label": label + suffix, "checkpoint": checkpoint, "noise": noise, "by_h": rows}
 
 
 class HandOver(gym.Wrapper):
@@ -119,6 +122,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--h", type=int, nargs="+", default=[0, 50, 100, 125, 140, 155, 170])
     parser.add_argument("--noise", type=float, nargs="+", default=[0.0],
                         help="std(s) of executed-action noise after the hand-over; every policy at each")
+    parser.add_argument("--noise-on", default="all", choices=list(NOISE_PARTS),
+                        help="the action part the noise perturbs: all, arm (palm twist) or hand (joint targets)")
     parser.add_argument("--demos", type=int, default=11, help="demonstrations (one per seen object by default)")
     parser.add_argument("--seed", type=int, default=0, help="the demonstrations' solve seed")
     parser.add_argument("--jobs", type=int, default=1, help="policies evaluated at once")
@@ -132,11 +137,13 @@ def main(argv=None) -> dict:
     demos = find_demos(args.task, args.demos, "seen", args.seed)
     if max(args.h) >= min(length for *_, length in demos):
         raise ValueError(f"--h must stay below the demonstrations' first success ({min(l for *_, l in demos)} steps)")
-    jobs = [(args.task, label, path, demos, args.h, sigma) for label, path in args.policy for sigma in args.noise]
+    jobs = [(args.task, label, path, demos, args.h, sigma, args.noise_on)
+            for label, path in args.policy for sigma in args.noise]
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         results = list(pool.map(success_from_h, *zip(*jobs))) if args.jobs > 1 else \
             [success_from_h(*job) for job in jobs]
     result = {"task": args.task, "demos": [list(d) for d in demos], "h": args.h, "noise": args.noise,
+              "noise_on": args.noise_on,
               "policies": {r["label"]: {"checkpoint": r["checkpoint"], "noise": r["noise"], "by_h": r["by_h"]}
                            for r in results},
               **provenance(__file__, argv)}

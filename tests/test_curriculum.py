@@ -174,6 +174,33 @@ def test_with_backoff_a_frontier_moves_forward_after_k_failures_in_a_row_and_nev
     assert rfcl.frontiers.tolist() == [11]
 
 
+def test_with_probes_a_success_before_the_frontier_moves_it_there_at_once():
+    """--curriculum-probe: a frontier stuck where the learner fails (difficulty not monotone in h) moves back to an
+    earlier start it succeeded from; failures there, and starts at or after the frontier, do not move it."""
+    cur = Curriculum(CurriculumConfig("reverse", demos=2, successes=3, probe=0.2), [(0, "a", 40), (1, "b", 30)])
+    cur.streaks[0] = 2
+    stats = cur.update(batch([20, 12, 39, 25], [0, 0, 0, 1], [False, True, False, True]))
+    assert cur.frontiers.tolist() == [12, 25] and cur.streaks.tolist() == [0, 0]  # 39 -> 12 (the success), 29 -> 25
+    assert stats["episodes_probe"] == 3 and stats["success_probe"] == pytest.approx(2 / 3)
+    cur.update(batch([5, 14], [0, 0], [False, True]))  # a failure before it, a success after it: no move
+    assert cur.frontiers.tolist() == [12, 25]
+    rfcl = Curriculum(CurriculumConfig("reverse", demos=1), [(0, "a", 40)])  # probe 0: RFCL, no jumps, no probe stats
+    stats = rfcl.update(batch([10], [0], [True]))
+    assert rfcl.frontiers.tolist() == [39] and "success_probe" not in stats
+
+
+def test_probe_starts_are_uniform_before_the_frontier_at_their_rate():
+    level = {"schedule": "reverse", "demos": [(0, "laptop_11cbb00f39", 200)], "frontiers": [100],
+             "true_resets": 0.0, "probe": 0.3}
+    env = GuidedStart(make("laptop", **STATE), level)
+    env.reset(seed=0)
+    h = np.array([env._draw(level)[2] for _ in range(3000)])
+    early = h[h < 100]
+    assert abs(len(early) / len(h) - 0.3) < 0.03 and set(h[h >= 100]) <= {100, 101, 102, 103, 104}
+    assert early.min() < 10 and early.max() > 90 and abs(early.mean() - 49.5) < 4  # U{0, ..., 99}
+    assert all(env._draw(dict(level, frontiers=[0]))[2] == 0 for _ in range(50))  # nothing before 0
+
+
 def test_reverse_starts_are_drawn_just_after_the_frontier_and_true_resets_at_their_rate():
     level = {"schedule": "reverse", "demos": [(0, "laptop_11cbb00f39", 200)], "frontiers": [100],
              "true_resets": 0.25}
@@ -198,7 +225,7 @@ def test_the_curriculum_state_round_trips_and_refuses_another_runs():
         other.load_state_dict(cur.state_dict())
     # a checkpoint from before --curriculum-backoff existed (no "backoff", no "failures") resumes with backoff 0 ...
     old = cur.state_dict()
-    del old["config"]["backoff"], old["failures"]
+    del old["config"]["backoff"], old["config"]["probe"], old["failures"]
     again.load_state_dict(old)
     assert again.frontiers.tolist() == [6, 29] and again.failures.tolist() == [0, 0]
     backing = Curriculum(CurriculumConfig("reverse", demos=2, backoff=4), [(0, "a", 12), (1, "b", 30)])
@@ -209,7 +236,8 @@ def test_the_curriculum_state_round_trips_and_refuses_another_runs():
 @pytest.mark.parametrize("field, value, message", [
     ("schedule", "backwards", "valid choices"), ("guide", "oracle", "valid choices"), ("horizon", -1, "H must be"),
     ("true_resets", 1.5, r"fraction in \[0, 1\]"), ("true_resets", -0.1, r"fraction in \[0, 1\]"),
-    ("step", 0, "step must be >= 1"), ("backoff", -1, "backoff must be >= 0")])
+    ("step", 0, "step must be >= 1"), ("backoff", -1, "backoff must be >= 0"),
+    ("probe", 1.5, r"probe is a fraction in \[0, 1\]")])
 def test_bad_curriculum_values_name_the_valid_ones(field, value, message):
     with pytest.raises(ValueError, match=message):
         CurriculumConfig(**{field: value}).validate()

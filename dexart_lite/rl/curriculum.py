@@ -17,7 +17,11 @@ Schedules (``SCHEDULES``):
   exactly the frontier it moves back by ``step`` (never below 0). With ``backoff`` > 0 it also moves *forward*
   by ``step`` (never past ``L - 1``) after ``backoff`` failures in a row from it, so that a frontier the
   learner can no longer finish from comes back to starts it can (Florensa et al. 2017 keep the starts at
-  0.1-0.9 success); 0 (RFCL): frontiers only move back. A fraction ``true_resets`` of the
+  0.1-0.9 success); 0 (RFCL): frontiers only move back. With ``probe`` > 0 that share of the guided
+  episodes instead starts at ``h ~ U{0, ..., frontier - 1}`` of its demonstration, and a success from such an
+  earlier start moves the frontier back to it at once: on a demonstration whose difficulty is not monotone in
+  ``h`` (the learner fails from the guide's late states and succeeds from earlier ones) RFCL's rule never moves
+  the frontier, and backoff cannot (it stops at ``L - 1``); 0 (RFCL): no probes. A fraction ``true_resets`` of the
   episodes start from the true reset, and once 90 % of the frontiers have reached 0 every episode does.
 
 Where the state lives: the schedule (``Curriculum``: frontiers, streaks, counts) lives in the trainer and
@@ -74,7 +78,8 @@ class GuidedStart(gym.Wrapper):
     """A gymnasium env whose resets hand over after ``h`` guide steps; ``h`` follows ``curriculum_level``.
 
     ``level`` (``Curriculum.level()``): ``{"schedule": "none"}``, ``{"schedule": "uniform", "horizon": H}``
-    or ``{"schedule": "reverse", "demos": [(seed, object, L), ...], "frontiers": [...], "true_resets": p}``.
+    or ``{"schedule": "reverse", "demos": [(seed, object, L), ...], "frontiers": [...], "true_resets": p,
+    "probe": q}`` (``probe`` may be absent: 0).
     ``guide_render``: False skips the camera render on every guide step but the last (the physical state
     is the same; the point cloud's random draws then differ from a plain run's, which renders every step);
     a checkpoint guide, which acts on its observations, always renders.
@@ -126,6 +131,9 @@ class GuidedStart(gym.Wrapper):
         weights = frontiers + 1.0  # RFCL: demos further from done are drawn more often
         demo = int(rng.choice(len(frontiers), p=weights / weights.sum()))
         seed, name, length = level["demos"][demo]
+        # a probe: a start anywhere before the frontier (no draw at all without probes: RFCL's stream is unchanged)
+        if level.get("probe", 0.0) > 0 and frontiers[demo] > 0 and rng.random() < level["probe"]:
+            return int(seed), name, int(rng.integers(frontiers[demo])), demo
         h = min(int(frontiers[demo]) + int(rng.choice(len(OFFSET_PROBS), p=OFFSET_PROBS)), length - 1)
         return int(seed), name, h, demo
 
@@ -202,6 +210,7 @@ class CurriculumConfig:
     successes: int = 3  # reverse: successes in a row from the frontier before it moves
     backoff: int = 0  # reverse: failures in a row from the frontier before it moves forward (0: never, RFCL)
     true_resets: float = 0.1  # reverse: share of episodes from the true reset
+    probe: float = 0.0  # reverse: share of guided episodes from a uniform start before the frontier (0: none, RFCL)
     guide: str = "expert"
 
     def validate(self) -> None:
@@ -214,8 +223,9 @@ class CurriculumConfig:
                 raise ValueError(f"curriculum {name} must be >= 1, got {getattr(self, name)}")
         if self.backoff < 0:
             raise ValueError(f"curriculum backoff must be >= 0 (0: frontiers never move forward), got {self.backoff}")
-        if not 0.0 <= self.true_resets <= 1.0:
-            raise ValueError(f"curriculum true_resets is a fraction in [0, 1], got {self.true_resets}")
+        for name in ("true_resets", "probe"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"curriculum {name} is a fraction in [0, 1], got {getattr(self, name)}")
 
 
 class Curriculum:
@@ -239,7 +249,7 @@ class Curriculum:
             return {"schedule": "uniform", "horizon": self.cfg.horizon}
         if self.cfg.schedule == "reverse":
             return {"schedule": "reverse", "demos": self.demos, "frontiers": self.frontiers.tolist(),
-                    "true_resets": self.cfg.true_resets}
+                    "true_resets": self.cfg.true_resets, "probe": self.cfg.probe}
         return {"schedule": "none"}
 
     def update(self, data) -> dict:
@@ -251,7 +261,11 @@ class Curriculum:
         # episodes from exactly their demo's frontier (as it was when they started)
         at_frontier = [bool(d >= 0 and self.cfg.schedule == "reverse" and h == self.frontiers[d])
                        for h, d in zip(starts, demos)]
-        for demo, ok, counts in zip(demos, success, at_frontier):
+        # with probes: episodes of a demonstration that started before its frontier (as it is now)
+        probes = [bool(self.cfg.probe and d >= 0 and h < self.frontiers[d]) for h, d in zip(starts, demos)]
+        for h, demo, ok, counts, probe in zip(starts, demos, success, at_frontier, probes):
+            if probe and ok and h < self.frontiers[demo]:  # solvable from an earlier start: the frontier goes there
+                self.frontiers[demo], self.streaks[demo], self.failures[demo] = h, 0, 0
             if not counts:
                 continue
             self.streaks[demo] = self.streaks[demo] + 1 if ok else 0
@@ -262,11 +276,12 @@ class Curriculum:
             elif self.cfg.backoff and self.failures[demo] >= self.cfg.backoff:
                 self.frontiers[demo] = min(self.demos[demo][2] - 1, self.frontiers[demo] + self.cfg.step)
                 self.failures[demo] = 0
-        return self.stats(starts, success, at_frontier)
+        return self.stats(starts, success, at_frontier, probes)
 
-    def stats(self, starts: list, success: list, at_frontier: list) -> dict:
+    def stats(self, starts: list, success: list, at_frontier: list, probes: list | None = None) -> dict:
         """Mean h and the guide steps of the ended episodes, success of those that started at h = 0, and for
-        ``reverse`` the frontiers and the success of the episodes that started at their frontier."""
+        ``reverse`` the frontiers and the success of the episodes that started at their frontier (with probes
+        also of those that started before it)."""
         def rate(mask):
             chosen = [ok for ok, m in zip(success, mask) if m]
             return float(np.mean(chosen)) if chosen else math.nan
@@ -277,6 +292,8 @@ class Curriculum:
             row.update({"frontier_mean": float(self.frontiers.mean()), "frontier_max": int(self.frontiers.max()),
                         "reversed_frac": float(np.mean(self.frontiers == 0)), "success_frontier": rate(at_frontier),
                         "episodes_frontier": int(sum(at_frontier))})
+            if self.cfg.probe:
+                row.update({"success_probe": rate(probes), "episodes_probe": int(sum(probes))})
         return row
 
     def state_dict(self) -> dict:
@@ -284,7 +301,8 @@ class Curriculum:
                 "streaks": self.streaks.tolist(), "failures": self.failures.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
-        # a checkpoint written before a setting existed ran with its default (backoff 0: no failure counts)
+        # a checkpoint written before a setting existed ran with its default (backoff 0: no failure counts;
+        # probe 0)
         config = {**vars(CurriculumConfig()), **state["config"]}
         if config != vars(self.cfg) or [tuple(d) for d in state["demos"]] != self.demos:
             raise ValueError(f"--resume: the checkpoint's curriculum {config} does not match this run's "

@@ -176,6 +176,9 @@ class PPOConfig:
                                     "at 0.1-0.9 success)"})
     curriculum_true_resets: float = field(default=0.1, metadata={"help": "reverse: share of episodes that start "
                                           "from the true reset (all once 90%% of the frontiers are at 0)"})
+    curriculum_probe: float = field(default=0.0, metadata={"help": "reverse: share of the guided episodes that start "
+                                    "at a uniform step before their frontier; a success there moves the frontier to "
+                                    "it (0: none, RFCL)"})
     guide: str = field(default="expert", metadata={"help": "who acts before the learner: expert (the scripted, "
                        "privileged solver; training only) or a checkpoint file"})
     guide_render: bool = field(default=False, metadata={"help": "render the camera on every guide step (False: "
@@ -341,7 +344,8 @@ def validate(cfg: PPOConfig) -> None:
 
 def curriculum_config(cfg: PPOConfig) -> CurriculumConfig:
     return CurriculumConfig(cfg.curriculum, cfg.curriculum_horizon, cfg.curriculum_demos, cfg.curriculum_step,
-                            cfg.curriculum_successes, cfg.curriculum_backoff, cfg.curriculum_true_resets, cfg.guide)
+                            cfg.curriculum_successes, cfg.curriculum_backoff, cfg.curriculum_true_resets,
+                            probe=cfg.curriculum_probe, guide=cfg.guide)
 
 
 def make_curriculum(cfg: PPOConfig) -> Curriculum | None:

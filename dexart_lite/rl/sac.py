@@ -109,6 +109,7 @@ class SACConfig:
     curriculum_successes: int = same_as_ppo("curriculum_successes", 3)
     curriculum_backoff: int = same_as_ppo("curriculum_backoff", 0)
     curriculum_true_resets: float = same_as_ppo("curriculum_true_resets", 0.1)
+    curriculum_probe: float = same_as_ppo("curriculum_probe", 0.0)
     guide: str = same_as_ppo("guide", "expert")
     guide_render: bool = same_as_ppo("guide_render", False)
     seed: int = 0

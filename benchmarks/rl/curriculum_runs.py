@@ -159,6 +159,10 @@ RECIPES["student_anchored_floor_reverse_std03"] = {
 # collected success 0.35-0.45 instead of 0.2-0.3, held out 0.11 / 0.06, level with std03's 0.10 / 0.05
 RECIPES["student_anchored_floor_reverse_std03_backoff"] = {**RECIPES["student_anchored_floor_reverse_std03"],
                                                             "curriculum_backoff": 6}
+# student_anchored_floor_reverse_d17: the reverse curriculum on toilets, one demonstration per seen toilet (17; the
+# bucket recipes' 11 would leave 6 toilets without guided starts). Unlike the bucket expert, the toilet expert keeps
+# 0.91-1.00 from every h at std 0.1 (benchmarks/results/rl/toilet_expert_noise_from_h.json), so it keeps std 0.1
+RECIPES["student_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse"], "curriculum_demos": 17}
 # dagger_wide_flat_g999: dagger_wide_flat with gamma 0.999 (DexArt and the presets: 0.99). A success bonus B at step t
 # is worth gamma^t * B from the reset, so at 0.99 a policy that succeeds 0.8 of the time at step 100 (0.29 B) still
 # outranks one that succeeds 0.98 of the time at step 132 (0.26 B) whatever the bonus; at 0.999 (0.72 B against

@@ -492,7 +492,8 @@ def test_a_student_variant_recipe_starts_from_its_own_student_which_differs_from
 def test_success_from_h_replays_the_demonstration_so_the_expert_still_succeeds_from_every_h(load_benchmark):
     """benchmarks/rl/success_from_h.py: the expert handed its own episode back after h steps (exact replay, the same
     expert instance going on) succeeds from every h, on every demonstration; --noise adds each std as a policy of its
-    own (--noise-on: on part of the action); a policy that is neither expert nor label=checkpoint, or a negative std, is refused."""
+    own (--noise-on: on part of the action); a policy that is neither expert nor label=checkpoint, or a negative std,
+    is refused."""
     bench = load_benchmark("success_from_h")
     out = bench.main(["--task", "laptop", "--policy", "expert", "--demos", "1", "--h", "0", "60", "--noise", "0", "0.5"])
     demo, = out["demos"]

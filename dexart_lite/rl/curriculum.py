@@ -263,8 +263,9 @@ class Curriculum:
                        for h, d in zip(starts, demos)]
         # with probes: episodes of a demonstration that started before its frontier (as it is now)
         probes = [bool(self.cfg.probe and d >= 0 and h < self.frontiers[d]) for h, d in zip(starts, demos)]
-        for h, demo, ok, counts, probe in zip(starts, demos, success, at_frontier, probes):
-            if probe and ok and h < self.frontiers[demo]:  # solvable from an earlier start: the frontier goes there
+        for h, demo, ok, counts in zip(starts, demos, success, at_frontier):
+            # solvable from an earlier start (the frontier may have moved within this batch): the frontier goes there
+            if self.cfg.probe and demo >= 0 and ok and h < self.frontiers[demo]:
                 self.frontiers[demo], self.streaks[demo], self.failures[demo] = h, 0, 0
             if not counts:
                 continue

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 from functools import partial
 from pathlib import Path
 
@@ -368,6 +369,12 @@ def test_the_curriculum_benchmarks_student_step_alone_distils_and_records_each_s
     assert row["frames"] > 0 and row["wall_time_s"] > 0 and written["seen_success"] == row["seen_success"]
     assert written["student"]["task"] == "laptop" and {"command", "machine", "eval_seed"} <= written.keys()
     stamp = (student / "checkpoint.pt").stat().st_mtime_ns
+    assert bench.main(argv)["per_seed"] == written["per_seed"]
+    assert (student / "checkpoint.pt").stat().st_mtime_ns == stamp
+    # a committed student (<results>/checkpoints/<name>) missing from --runs is copied there and read back, not
+    # distilled again
+    (tmp_path / "results" / "checkpoints").mkdir()
+    shutil.move(student, tmp_path / "results" / "checkpoints" / student.name)
     assert bench.main(argv)["per_seed"] == written["per_seed"]
     assert (student / "checkpoint.pt").stat().st_mtime_ns == stamp
     with pytest.raises(ValueError, match="student recipe"):

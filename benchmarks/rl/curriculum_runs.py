@@ -20,6 +20,9 @@ continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-se
     mean frontier),
     seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
 
+A student or run committed under ``benchmarks/results/rl/curriculum/checkpoints`` (``<results>/checkpoints``) whose
+folder ``--runs`` lacks is copied there first, and so read back or continued (``--no-committed``: never).
+
 ``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json`` (a recipe
 from a student variant: ``<task>_cloud_student_<variant>.json``, ``STUDENT_VARIANTS``): task,
 student (the DistillConfig), per_seed (seed, frames, wall_time_s, checkpoint, seen_success, unseen_success),
@@ -332,6 +335,21 @@ def refresh_curves(path: Path, runs: Path, note: str | None = None) -> dict:
     return summary
 
 
+def adopt_committed(out: Path, committed: Path) -> bool:
+    """Copy the committed run of ``out``'s name (``committed/<name>``: a student, or an unfinished run's last
+    checkpoint, README there) into ``out`` when ``out`` does not exist, so that it is read back or continued
+    (``run_arm`` still compares its settings) instead of done again: a student takes ~45 min per seed to distil on
+    two cores. True if one was copied."""
+    import shutil
+
+    source = committed / out.name
+    if out.exists() or not (source / "run.json").exists():
+        return False
+    shutil.copytree(source, out)
+    print(f"{out.name}: copied the committed run from {source}; it is read back or continued")
+    return True
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
@@ -350,6 +368,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
     parser.add_argument("--students-only", action="store_true",
                         help="a student recipe's distillation step alone (no RL), to <task>_cloud_student.json")
+    parser.add_argument("--no-committed", action="store_true",
+                        help="never copy the committed students and checkpoints (<results>/checkpoints) into --runs")
     parser.add_argument("--refresh-curves", action="store_true",
                         help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
     args = parser.parse_args(argv)
@@ -358,14 +378,20 @@ def main(argv=None) -> dict:
     if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
         raise ValueError("fast mode writes smoke results: pass --results elsewhere")
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
-    if args.students_only:
-        if not RECIPES[args.recipe].get("student") or args.obs != "cloud":
-            raise ValueError("--students-only needs a student recipe (e.g. student_anchored) and --obs cloud")
-        return distil_students([student_config(args.task, s, args, args.recipe) for s in args.seeds],
-                               args.results / f"{args.task}_cloud_{student_name(args.recipe)}.json", argv, args.note)
     cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
     students = [student_config(args.task, s, args, args.recipe) if RECIPES[args.recipe].get("student") else None
                 for s in args.seeds]
+    runs = [run for run in [*students, *([] if args.students_only else cfgs)] if run is not None]
+    for run in [] if args.no_committed else runs:
+        adopt_committed(Path(run.out), args.results / "checkpoints")
+    for student in filter(None, students):
+        if not (Path(student.out) / "run.json").exists():
+            print(f"{Path(student.out).name}: no student yet, distilled first (~45 min per seed on two cores)")
+    if args.students_only:
+        if not students[0] or args.obs != "cloud":
+            raise ValueError("--students-only needs a student recipe (e.g. student_anchored) and --obs cloud")
+        return distil_students(students, args.results / f"{args.task}_cloud_{student_name(args.recipe)}.json",
+                               argv, args.note)
     summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
                **({"student": dataclasses.asdict(students[0]) | {"seed": None, "out": None}} if students[0] else {}),
                "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,

@@ -47,7 +47,7 @@ HEADLINE = {
     "bucket": {"student": "distill_bucket.json", "rl": "bucket_cloud_student_anchored_floor_reverse_std03.json", "rl_state": None},
     "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": "laptop_cloud_student_anchored_release_flat.json",
                "rl_state": "laptop_state_dagger_wide.json"},
-    "toilet": {"student": "distill_toilet_episodes2x.json", "rl": "toilet_cloud_student_anchored_floor_reverse_d17.json",
+    "toilet": {"student": "distill_toilet_episodes2x.json", "rl": "toilet_cloud_student_anchored_release.json",
                "rl_state": None},
 }
 

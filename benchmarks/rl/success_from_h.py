@@ -6,7 +6,7 @@
         --h 0 50 100 125 140 155 170 --json benchmarks/results/rl/bucket_success_from_h.json
     python benchmarks/rl/success_from_h.py --task bucket --jobs 2 --policy expert --noise 0 0.03 0.05 0.1 \\
         --h 0 50 100 125 140 155 --json benchmarks/results/rl/bucket_expert_noise_from_h.json
-    python benchmarks/rl/success_from_h.py --task bucket --jobs 2 --policy expert --noise 0.03 0.1 --noise-on arm \
+    python benchmarks/rl/success_from_h.py --task bucket --jobs 2 --policy expert --noise 0.03 0.1 --noise-on arm \\
         --h 0 50 100 125 140 155 --json benchmarks/results/rl/bucket_expert_noise_arm_from_h.json   # and hand
 
 The episodes are the reverse curriculum's demonstrations (``rl/curriculum.find_demos``: ``--demos`` (reset seed,

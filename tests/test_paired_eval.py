@@ -184,3 +184,64 @@ def test_return_vs_success_scores_a_policy_on_the_reward_asked_whatever_it_train
     expert, policy = result["policies"]
     assert result["reward"] == "dexart" and policy["checkpoint"] == checkpoint and policy["frames"] == 200
     assert policy["episodes"] == expert["episodes"] == 1
+
+
+# ---------------------------------------------------------------- benchmarks/rl/checkpoint_sweep.py
+def test_a_checkpoint_sweep_summarises_each_series_against_its_start(load_benchmark):
+    """Per series: the RL checkpoints' mean, swing and gain over the start, with se's worked by hand."""
+    bench = load_benchmark("checkpoint_sweep")
+    stats = lambda p, se: {"success": p, "se": se}  # noqa: E731 (one split's entry)
+    point = lambda f, seen, unseen: {"frames": f, "seen": stats(seen, 0.03), "unseen": stats(unseen, 0.04)}  # noqa: E731
+    series = {"s0": {"start": point(0, 0.4, 0.2), "checkpoints": [point(8, 0.5, 0.2), point(9, 0.3, 0.3)]},
+              "s1": {"start": None, "checkpoints": [point(5, 0.6, 0.1)]}}
+    summary = bench.summarise(series)
+    s0 = summary["series"]["s0"]["seen"]
+    assert s0["mean"] == pytest.approx(0.4) and s0["swing"] == pytest.approx(0.2) and s0["min"] == 0.3
+    assert s0["gain"] == pytest.approx(0.0)
+    # two checkpoints of se 0.03: the mean's se is sqrt(2) * 0.03 / 2, and the start's 0.03 adds in quadrature
+    assert s0["mean_se"] == pytest.approx(math.sqrt(2) * 0.03 / 2)
+    assert s0["gain_se"] == pytest.approx(math.hypot(math.sqrt(2) * 0.03 / 2, 0.03))
+    assert "gain" not in summary["series"]["s1"]["seen"]  # no start: no gain, and not in the mean gain
+    assert summary["unseen_gain"] == pytest.approx(0.05)
+
+
+def test_a_checkpoint_sweep_reads_committed_checkpoints_from_git_with_their_evaluations(
+        tmp_path, monkeypatch, load_benchmark, git_checkout):
+    """``REV:path`` checkpoints come out of git with the held-out evaluations committed beside them, which are read
+    back (nothing is evaluated again: evaluating would raise here) and reported as they were measured."""
+    import subprocess
+
+    from dexart_lite.rl import evaluate
+
+    bench = load_benchmark("checkpoint_sweep")
+    names = subprocess.run(["git", "ls-tree", "-r", "--name-only", "HEAD"], capture_output=True, text=True,
+                           cwd=bench.REPO).stdout.split()
+    folders = sorted({str(Path(n).parent) for n in names if n.endswith("heldout_unseen_e10_seed1000.json")})
+    student = next(f for f in folders if f.endswith("_cloud_student_s0"))
+    rl = next(f for f in folders if f.startswith(student[:-len("student_s0")]) and f != student and f.endswith("_s0"))
+
+    def boom(*args, **kwargs):
+        raise AssertionError("a committed evaluation was run again")
+
+    monkeypatch.setattr(evaluate, "evaluate_checkpoint", boom)
+    out = bench.main([f"s0=HEAD:{rl}/checkpoint.pt", "--start", f"s0=HEAD:{student}/checkpoint.pt",
+                      "--cache", str(tmp_path / "cache"), "--json", str(tmp_path / "sweep.json")])
+    committed = json.loads((bench.REPO / rl / "heldout_seen_e10_seed1000.json").read_text())
+    s0 = out["series"]["s0"]
+    assert s0["start"]["frames"] == 0 and s0["checkpoints"][0]["frames"] == committed["frames"] > 0
+    assert s0["checkpoints"][0]["seen"]["success"] == committed["success_rate"]
+    assert out["summary"]["seen_gain"] == pytest.approx(committed["success_rate"] - s0["start"]["seen"]["success"])
+    assert (tmp_path / "sweep.png").is_file()
+
+
+def test_a_checkpoint_sweep_names_bad_arguments(tmp_path, load_benchmark):
+    bench = load_benchmark("checkpoint_sweep")
+    with pytest.raises(ValueError, match="--start for series without checkpoints: s9"):
+        bench.main([f"s0={tmp_path}/a.pt", "--start", f"s9={tmp_path}/b.pt", "--json", str(tmp_path / "x.json")])
+    with pytest.raises(FileNotFoundError, match="checkpoint not found.*REV:path"):
+        bench.resolve(str(tmp_path / "missing.pt"), tmp_path)
+    with pytest.raises(FileNotFoundError, match="is not in git"):
+        bench.resolve("HEAD:no/such/checkpoint.pt", tmp_path)
+    import argparse
+    with pytest.raises(argparse.ArgumentTypeError, match="SERIES=CHECKPOINT"):
+        bench.parse_spec("just_a_path.pt")

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from dexart_lite.rl.checkpoint import load_checkpoint
-from dexart_lite.rl.evaluate import evaluate_many
+from dexart_lite.rl.evaluate import evaluate_many, split_stats
 from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, write_json
 
 RESULTS = benchmark_results(__file__)
@@ -85,14 +85,6 @@ def merge_rows(previous: dict, rows: list[dict], episodes: int, seed: int) -> li
     kept = [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous["runs"]
             if (r["task"], r["recipe"]) not in fresh]
     return sorted(kept + rows, key=lambda r: (r["task"], r["recipe"], r["seed"]))  # the order of a full call
-
-
-def split_stats(result: dict) -> dict:
-    """Success, its object-stratified se, and success per object, of one ``evaluate`` result."""
-    per_object = {name: r["success_rate"] for name, r in result["objects"].items()}
-    k = result["episodes_per_object"]
-    se = math.sqrt(sum(p * (1 - p) / k for p in per_object.values())) / len(per_object)
-    return {"success": result["success_rate"], "se": se, "objects": per_object}
 
 
 def compare(student: dict, rl: dict) -> dict:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 from typing import Callable
@@ -137,6 +138,15 @@ def evaluate_checkpoint(path: str | Path, split: str = "seen", episodes_per_obje
 def heldout_path(checkpoint: str | Path, split: str, episodes_per_object: int, seed: int) -> Path:
     """Where ``evaluate_many`` keeps one evaluation: next to the checkpoint, ``heldout_<split>_e<N>_seed<S>.json``."""
     return Path(checkpoint).parent / f"heldout_{split}_e{episodes_per_object}_seed{seed}.json"
+
+
+def split_stats(result: dict) -> dict:
+    """Success, its standard error and success per object, of one ``evaluate`` result. Every object gets the same k
+    episodes, so the se is stratified by object: sqrt(sum_o p_o (1 - p_o) / k) / n_objects."""
+    per_object = {name: r["success_rate"] for name, r in result["objects"].items()}
+    k = result["episodes_per_object"]
+    se = math.sqrt(sum(p * (1 - p) / k for p in per_object.values())) / len(per_object)
+    return {"success": result["success_rate"], "se": se, "objects": per_object}
 
 
 def evaluate_many(work: list[tuple[str, str]], episodes_per_object: int, seed: int, jobs: int = 1) -> dict:

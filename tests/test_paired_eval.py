@@ -203,6 +203,10 @@ def test_a_checkpoint_sweep_summarises_each_series_against_its_start(load_benchm
     assert s0["gain_se"] == pytest.approx(math.hypot(math.sqrt(2) * 0.03 / 2, 0.03))
     assert "gain" not in summary["series"]["s1"]["seen"]  # no start: no gain, and not in the mean gain
     assert summary["unseen_gain"] == pytest.approx(0.05)
+    later = bench.summarise({"s0": series["s0"]}, from_frames=9)["series"]["s0"]["seen"]  # the checkpoint at 8 frames left out
+    assert later["mean"] == pytest.approx(0.3) and later["gain"] == pytest.approx(-0.1) and later["swing"] == 0
+    with pytest.raises(ValueError, match="series s1 has no checkpoint of at least 9 frames"):
+        bench.summarise({"s1": series["s1"]}, from_frames=9)
 
 
 def test_a_checkpoint_sweep_reads_committed_checkpoints_from_git_with_their_evaluations(

@@ -19,7 +19,8 @@ per seen and unseen object at env seed ``--seed`` (1000, held out), cached next 
 
 Written to ``--json``: episodes_per_object, eval_seed, series (label -> start and checkpoints, each: checkpoint,
 frames, and per split success, its object-stratified se and success per object), summary (per series and split:
-the start, the RL checkpoints' mean, min, max and swing (max - min), and the mean's gain over the start with its se),
+the start, the mean, min, max and swing (max - min) of the RL checkpoints of at least ``--summary-from`` frames, and
+the mean's gain over the start with its se; ``from_frames``),
 the mean gain over the series, command, machine; and a plot beside it (success against RL frames).
 """
 
@@ -75,17 +76,19 @@ def resolve(spec: str, cache: Path) -> Path:
     return target
 
 
-def summarise(series: dict) -> dict:
-    """Per series and split: start, the RL checkpoints' mean / min / max / swing, the mean's gain over the start and
+def summarise(series: dict, from_frames: int = 0) -> dict:
+    """Per series and split, over its RL checkpoints of at least ``from_frames``: start, their mean / min / max / swing, the mean's gain over the start and
     its se (episodes are independent, so the se of a mean over n checkpoints is sqrt(sum se^2) / n); and per split
     the gain averaged over the series that have a start."""
-    out = {"series": {}}
+    out = {"from_frames": from_frames, "series": {}}
     for label, s in series.items():
-        entry = {}
+        entry, kept = {}, [c for c in s["checkpoints"] if c["frames"] >= from_frames]
+        if not kept:
+            raise ValueError(f"series {label} has no checkpoint of at least {from_frames} frames (--summary-from)")
         for split in SPLITS:
-            values = [c[split]["success"] for c in s["checkpoints"]]
+            values = [c[split]["success"] for c in kept]
             mean = float(np.mean(values))
-            se = math.sqrt(sum(c[split]["se"] ** 2 for c in s["checkpoints"])) / len(values)
+            se = math.sqrt(sum(c[split]["se"] ** 2 for c in kept)) / len(values)
             entry[split] = {"mean": mean, "mean_se": se, "min": min(values), "max": max(values),
                             "swing": max(values) - min(values)}
             if s["start"] is not None:
@@ -127,6 +130,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--episodes", type=int, default=10, help="per seen and unseen object")
     parser.add_argument("--seed", type=int, default=1000, help="env seed of every evaluation (1000: held out)")
     parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
+    parser.add_argument("--summary-from", type=int, default=0, help="summarise the checkpoints of at least this "
+                        "many RL frames (the earlier ones are still evaluated and drawn)")
     parser.add_argument("--cache", type=Path, default=Path("runs/checkpoint_sweep"), help="where git checkpoints go")
     parser.add_argument("--json", type=Path, required=True)
     args = parser.parse_args(argv)
@@ -151,7 +156,7 @@ def main(argv=None) -> dict:
     for s in series.values():
         s["checkpoints"].sort(key=lambda c: c["frames"])
     out = {"episodes_per_object": args.episodes, "eval_seed": args.seed, "series": series,
-           "summary": summarise(series), **provenance(__file__, argv), "jobs": args.jobs}
+           "summary": summarise(series, args.summary_from), **provenance(__file__, argv), "jobs": args.jobs}
     write_json(args.json, out)
     plot(series, args.json.with_suffix(".png"))
     for label, s in series.items():

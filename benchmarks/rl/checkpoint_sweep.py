@@ -19,9 +19,9 @@ per seen and unseen object at env seed ``--seed`` (1000, held out), cached next 
 
 Written to ``--json``: episodes_per_object, eval_seed, series (label -> start and checkpoints, each: checkpoint,
 frames, and per split success, its object-stratified se and success per object), summary (per series and split:
-the start, the mean, min, max and swing (max - min) of the RL checkpoints of at least ``--summary-from`` frames, and
-the mean's gain over the start with its se; ``from_frames``),
-the mean gain over the series, command, machine; and a plot beside it (success against RL frames).
+the start, the mean, min, max and swing (max - min) of the RL checkpoints of at least ``--summary-from`` frames
+(``from_frames``), and the mean's gain over the start with its se; the mean gain over the series), command, machine;
+and a plot beside it (success against RL frames).
 """
 
 from __future__ import annotations
@@ -33,7 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
 from dexart_lite.utils import provenance, save_figure, write_json
 
@@ -77,9 +76,9 @@ def resolve(spec: str, cache: Path) -> Path:
 
 
 def summarise(series: dict, from_frames: int = 0) -> dict:
-    """Per series and split, over its RL checkpoints of at least ``from_frames``: start, their mean / min / max / swing, the mean's gain over the start and
-    its se (episodes are independent, so the se of a mean over n checkpoints is sqrt(sum se^2) / n); and per split
-    the gain averaged over the series that have a start."""
+    """Per series and split, over its RL checkpoints of at least ``from_frames``: start, their mean / min / max /
+    swing, the mean's gain over the start and its se (episodes are independent, so the se of a mean over n
+    checkpoints is sqrt(sum se^2) / n); and per split the gain averaged over the series that have a start."""
     out = {"from_frames": from_frames, "series": {}}
     for label, s in series.items():
         entry, kept = {}, [c for c in s["checkpoints"] if c["frames"] >= from_frames]
@@ -144,10 +143,10 @@ def main(argv=None) -> dict:
     files = {spec: resolve(spec, args.cache) for spec in [*starts.values(), *(c for _, c in args.checkpoints)]}
     results = evaluate_many([(str(f), s) for f in files.values() for s in SPLITS], args.episodes, args.seed, args.jobs)
 
-    def point(spec: str, frames: int | None = None) -> dict:
-        f = files[spec]
-        return {"checkpoint": spec, "frames": load_checkpoint(f)["frames"] if frames is None else frames,
-                **{s: split_stats(results[(str(f), s)]) for s in SPLITS}}
+    def point(spec: str, frames: int | None = None) -> dict:  # frames: the checkpoint's own, kept in its evaluation
+        evaluated = {s: results[(str(files[spec]), s)] for s in SPLITS}
+        return {"checkpoint": spec, "frames": evaluated["seen"]["frames"] if frames is None else frames,
+                **{s: split_stats(r) for s, r in evaluated.items()}}
 
     series = {}
     for label, spec in args.checkpoints:
@@ -162,8 +161,8 @@ def main(argv=None) -> dict:
     for label, s in series.items():
         print(f"{label}: " + "; ".join(f"{c['frames']}: " + " / ".join(f"{c[x]['success']:.2f}" for x in SPLITS)
                                        for c in s["checkpoints"]))
+    e = out["summary"]
     for split in SPLITS:
-        e = out["summary"]
         if f"{split}_gain" in e:
             print(f"{split}: mean over checkpoints minus start {e[f'{split}_gain']:+.2f} ± {e[f'{split}_gain_se']:.2f}")
     print(f"wrote {args.json}")

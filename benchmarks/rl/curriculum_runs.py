@@ -128,6 +128,14 @@ for _name in ("dagger_wide", "student_anchored_release"):
 # while the KL to the student grew from 0.6 to 1.3 nats per step (docs item 20); the constant anchor (weight 1) held
 # the students at KL ~0.02 and added nothing (item 11). Does a weaker anchor that is never let go stop the drift?
 RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_flat"], "anchor_floor": 0.1}
+# student_anchored_floor_flat_b16k: the same against the gradient noise: 4x the frames per update (16,000: ~90 faucet
+# episodes, ~8 per seen faucet, instead of ~22) and 4x the samples per gradient step (minibatch 2,000), with the same
+# trust region per update (KL stop 0.01) and the anchor's schedule unchanged per frame (x 0.95^4 per batch; critic
+# warm-up 2 batches, 32k frames, instead of 5 x 4k). Adam's step size does not shrink with a noisier gradient, and
+# the 4k updates stop at the KL limit after 4-10 steps of 500 samples, so each moves the policy by as much whatever
+# it learnt; held-out checkpoints of one run swing by up to 0.2 (docs item 29). Per frame the policy moves ~4x less
+BIG_BATCH = {"frames_per_batch": 16_000, "minibatch": 2_000, "anchor_decay": round(0.95 ** 4, 4), "critic_warmup": 2}
+RECIPES["student_anchored_floor_flat_b16k"] = {**RECIPES["student_anchored_floor_flat"], **BIG_BATCH}
 # student_anchored_floor: the same floor on DexArt's own reward, for toilets: there the flat bonus took the students
 # down as the anchor let go (item 21), while on DexArt's reward the released anchor gained a little (item 12)
 RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}

@@ -43,7 +43,7 @@ PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (
 # and the best committed RL run set on point clouds (None: none yet)
 # and the best committed RL run set on the state observation (the diagnostic: object pose given, no perception)
 HEADLINE = {
-    "faucet": {"student": "distill_faucet_episodes2x.json", "rl": "faucet_cloud_student_anchored_floor_flat.json", "rl_state": "faucet_state_dagger8_wide_flat.json"},
+    "faucet": {"student": "distill_faucet_episodes2x.json", "rl": "faucet_cloud_student_anchored_floor_flat_b16k.json", "rl_state": "faucet_state_dagger8_wide_flat.json"},
     "bucket": {"student": "distill_bucket.json", "rl": "bucket_cloud_student_anchored_floor_reverse_std03.json", "rl_state": None},
     "laptop": {"student": "distill_laptop_episodes2x_noise.json", "rl": "laptop_cloud_student_anchored_release_flat.json",
                "rl_state": "laptop_state_dagger_wide.json"},

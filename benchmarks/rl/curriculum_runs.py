@@ -139,6 +139,11 @@ RECIPES["student_anchored_floor_flat_b16k"] = {**RECIPES["student_anchored_floor
 # student_anchored_floor: the same floor on DexArt's own reward, for toilets: there the flat bonus took the students
 # down as the anchor let go (item 21), while on DexArt's reward the released anchor gained a little (item 12)
 RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}
+# <recipe>_b16k on the other tasks: BIG_BATCH alone added to each task's own best point-cloud recipe, so that the
+# comparison with it isolates the batch size (laptop: the released anchor on the flat bonus, docs item 19; toilet:
+# the floor on DexArt's reward, item 23)
+RECIPES["student_anchored_release_flat_b16k"] = {**RECIPES["student_anchored_release_flat"], **BIG_BATCH}
+RECIPES["student_anchored_floor_b16k"] = {**RECIPES["student_anchored_floor"], **BIG_BATCH}
 # student_anchored_floor_reverse: the same from the experts' states, for buckets, whose students never lift a bucket
 # from the true reset (so PPO from the reset collects no success to learn from): RFCL's reverse curriculum on 11
 # (seed, object) pairs the scripted expert solves, each start frontier first one step before its first success

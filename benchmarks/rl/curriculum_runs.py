@@ -413,9 +413,13 @@ def main(argv=None) -> dict:
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
                "jobs": args.jobs, "workers": args.workers, "device": args.device,
                **({"note": args.note} if args.note else {})}
+    # a continued run's earlier parts may have run on other machines: their records are kept, oldest first
+    earlier = json.loads(path.read_text()) if path.exists() else None
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         jobs = list(zip(cfgs, students))
         for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):
+            if row["resumed"] and earlier is not None:
+                summary["earlier_machines"] = [*earlier.get("earlier_machines", []), earlier["machine"]]
             summary["per_seed"].append(row)
             for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
                 summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])

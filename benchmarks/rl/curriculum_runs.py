@@ -134,7 +134,7 @@ RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_fl
 # warm-up 2 batches, 32k frames, instead of 5 x 4k). Adam's step size does not shrink with a noisier gradient, and
 # the 4k updates stop at the KL limit after 4-10 steps of 500 samples, so each moves the policy by as much whatever
 # it learnt; held-out checkpoints of one run swing by up to 0.2 (docs item 29). Per frame the policy moves ~4x less,
-# each step on a 4x less noisy gradient
+# each step on a 4x less noisy gradient (faucets: docs item 30; laptops, from item 31's students: item 32)
 BIG_BATCH = {"frames_per_batch": 16_000, "minibatch": 2_000, "anchor_decay": round(0.95 ** 4, 4), "critic_warmup": 2}
 RECIPES["student_anchored_floor_flat_b16k"] = {**RECIPES["student_anchored_floor_flat"], **BIG_BATCH}
 # student_anchored_floor: the same floor on DexArt's own reward, for toilets: there the flat bonus took the students

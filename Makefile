@@ -7,6 +7,9 @@ PY := $(VENV)/bin/python
 PIP := $(PY) -m pip
 # torch is pinned: this machine's pip finds a CPU build of 2.13.0; a bare `torch` pulls a CUDA build.
 TORCH := torch==2.13.0
+# The suite runs on one pytest-xdist worker per CPU, at most 4 (on the 2-core CI machine it takes ~10 min
+# this way, ~17-21 min on one worker); tests are independent, each in its own tmp_path.
+TEST_WORKERS := $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 4 ? n : 4 )))
 
 .PHONY: demo test install clean-venv
 
@@ -23,7 +26,7 @@ demo: install
 	$(VENV)/bin/dexart-lite demo
 
 test: install
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal
 
 clean-venv:
 	rm -rf $(VENV)

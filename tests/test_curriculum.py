@@ -353,6 +353,23 @@ def test_the_curriculum_benchmark_writes_the_fields_it_documents(tmp_path, load_
     assert refreshed["per_seed"][0]["curve"] == expected
 
 
+def test_a_continued_curriculum_run_keeps_the_machines_of_its_earlier_parts(load_benchmark):
+    """The JSON's ``machine`` is where the last part trained; a seed continued in this call puts the replaced JSON's
+    machines before it (oldest first), a pure read-back leaves the replaced JSON's records as they were."""
+    bench = load_benchmark("curriculum_runs")
+    amd, xeon, here = {"cpu": "amd"}, {"cpu": "xeon"}, {"cpu": "here"}
+    earlier = {"machine": xeon, "earlier_machines": [amd]}
+    continued = {"resumed": True, "trained_in_this_call": True}
+    read_back = {"resumed": True, "trained_in_this_call": False}
+    fresh = {"resumed": False, "trained_in_this_call": True}
+    assert bench.machine_records(here, earlier, [continued, read_back]) == {"machine": here,
+                                                                             "earlier_machines": [amd, xeon]}
+    assert bench.machine_records(here, earlier, [read_back, read_back]) == earlier
+    assert bench.machine_records(here, {"machine": xeon}, [read_back]) == {"machine": xeon}
+    assert bench.machine_records(here, earlier, [fresh]) == {"machine": here}  # trained from scratch here
+    assert bench.machine_records(here, None, [continued]) == {"machine": here}
+
+
 def test_the_curriculum_benchmarks_student_step_alone_distils_and_records_each_seed(tmp_path, load_benchmark):
     """--students-only: the student recipe's distillation without RL (fast mode: one object, one round), its
     success read from the student's own evaluation; a second call reads the finished student back, trains nothing;

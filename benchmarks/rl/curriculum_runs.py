@@ -257,6 +257,8 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> pp
                          eval_episodes=1, frames=400, demo_episodes=min(overrides.get("demo_episodes", 0), 1),
                          bc_warmstart=min(overrides.get("bc_warmstart", 0), 2), curriculum_demos=2,
                          dagger_rounds=min(overrides.get("dagger_rounds", 0), 1))
+        if overrides.get("curriculum", "none") != "none":  # the guide replays ~140 steps per guided start: 3 in 4
+            overrides.update(curriculum_true_resets=0.75)     # episodes from the true reset keep the smoke run short
     return ppo.preset("fast", **overrides)
 
 
@@ -285,6 +287,7 @@ def run_seed(job: tuple) -> dict:
             "unseen_mean_max_stage": record["mean_max_stage"]["unseen"],
             "wall_time_s": round(training_seconds(record["history"]), 1),
             "wall_time_with_eval_s": round(record["wall_time_s"], 1), "resumed": record["continued"],
+            "trained_in_this_call": not record["resumed"],  # False: read back from its run.json
             "demo_frames": demos.get("frames", 0), "guide_success": demos.get("guide_success"),
             "dagger_success": demos.get("dagger_success"),
             # the cloned policy before any PPO update (a continued run reads it from its checkpoint)
@@ -347,6 +350,18 @@ def refresh_curves(path: Path, runs: Path, note: str | None = None) -> dict:
         row["curve"] = curve(history)
     write_json(path, summary)
     return summary
+
+
+def machine_records(machine: dict, earlier: dict | None, rows: list[dict]) -> dict:
+    """``machine`` and ``earlier_machines`` of the JSON: where the runs in ``rows`` trained. ``earlier`` is the JSON
+    this call replaces (None: none). A run continued in this call keeps the earlier JSON's machines before this one
+    (``earlier_machines``, oldest first); where every seed was read back, the earlier JSON's records stand."""
+    trained = [r for r in rows if r["trained_in_this_call"]]
+    if earlier is not None and not trained:
+        return {k: earlier[k] for k in ("machine", "earlier_machines") if k in earlier}
+    if earlier is not None and any(r["resumed"] for r in trained):
+        return {"machine": machine, "earlier_machines": [*earlier.get("earlier_machines", []), earlier["machine"]]}
+    return {"machine": machine}
 
 
 def adopt_committed(out: Path, committed: Path) -> bool:
@@ -414,13 +429,13 @@ def main(argv=None) -> dict:
                "jobs": args.jobs, "workers": args.workers, "device": args.device,
                **({"note": args.note} if args.note else {})}
     # a continued run's earlier parts may have run on other machines: their records are kept, oldest first
-    earlier = json.loads(path.read_text()) if path.exists() else None
+    earlier, this_machine = (json.loads(path.read_text()) if path.exists() else None), summary["machine"]
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         jobs = list(zip(cfgs, students))
         for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):
-            if row["resumed"] and earlier is not None:
-                summary["earlier_machines"] = [*earlier.get("earlier_machines", []), earlier["machine"]]
             summary["per_seed"].append(row)
+            summary.pop("earlier_machines", None)
+            summary.update(machine_records(this_machine, earlier, summary["per_seed"]))
             for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
                 summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
             write_json(path, summary)

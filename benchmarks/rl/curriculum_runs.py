@@ -142,7 +142,7 @@ RECIPES["student_anchored_floor_flat_b16k"] = {**RECIPES["student_anchored_floor
 RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}
 # <recipe>_b16k on the other tasks: BIG_BATCH alone added to each task's own best point-cloud recipe, so that the
 # comparison with it isolates the batch size (laptop: the released anchor on the flat bonus, docs item 19, run as
-# item 31; toilet: the floor on DexArt's reward, item 23, defined and not run yet)
+# item 31; toilet: the floor on DexArt's reward, item 23, run as item 33)
 RECIPES["student_anchored_release_flat_b16k"] = {**RECIPES["student_anchored_release_flat"], **BIG_BATCH}
 RECIPES["student_anchored_floor_b16k"] = {**RECIPES["student_anchored_floor"], **BIG_BATCH}
 # student_anchored_floor_reverse: the same from the experts' states, for buckets, whose students never lift a bucket

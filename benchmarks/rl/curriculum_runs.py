@@ -203,9 +203,16 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # ball of radius U[0.05, 0.2] m around one of theirs). Every seen toilet has a tank and the toilet policies find the
 # lid by it (benchmarks/results/students/tank_ablation_toilet.json); the held-out template C has none. Chosen after
 # looking at the unseen toilets, so for this variant the unseen split is no longer a blind test.
-STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}}
+# rounds10: 10 DAgger rounds instead of 6 (beta 0.5 x 0.6^r, so rounds 7-10 run the student at 0.02-0.005 expert
+# share: its own states, the expert's labels). The toilet students' round 6 opens about half the toilets it collects
+# on (0.51 and 0.57: runs/curriculum/toilet_cloud_student_s*/log.csv); on the faucet's state clones 8 rounds instead
+# of 3 lifted 0.80 -> 0.91 seen (clone_capacity_faucet_state_rounds8.json)
+STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "rounds10": {"rounds": 10}}
 # student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
 RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
+# student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students
+RECIPES["student_rounds10_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
+                                                         "student": "rounds10"}
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's

@@ -238,6 +238,31 @@ def test_a_checkpoint_sweep_reads_committed_checkpoints_from_git_with_their_eval
     assert (tmp_path / "sweep.png").is_file()
 
 
+def test_a_checkpoint_sweep_leaves_out_committed_evaluations_of_another_checkpoint(tmp_path, monkeypatch,
+                                                                                     load_benchmark, capsys):
+    """A run committed its checkpoint before its held-out files were evaluated again: ``REV:path`` extracts only the
+    evaluations whose ``frames`` are the checkpoint's, so a stale one is evaluated anew, not read back."""
+    import subprocess
+
+    bench = load_benchmark("checkpoint_sweep")
+    repo = tmp_path / "repo"
+    (repo / "run").mkdir(parents=True)
+    (repo / "run" / "checkpoint.pt").write_bytes(b"weights at 900 frames")
+    for split, frames in (("seen", 900), ("unseen", 600)):  # the unseen one measured an older checkpoint
+        (repo / "run" / f"heldout_{split}_e10_seed1000.json").write_text(json.dumps({"frames": frames}))
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(repo)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-qm", "run"], check=True)
+    monkeypatch.setattr(bench, "REPO", repo)
+    monkeypatch.setattr(bench, "checkpoint_frames", lambda path: 900)
+    target = bench.resolve("HEAD:run/checkpoint.pt", tmp_path / "cache")
+    assert target.read_bytes() == b"weights at 900 frames"
+    assert json.loads((target.parent / "heldout_seen_e10_seed1000.json").read_text()) == {"frames": 900}
+    assert not (target.parent / "heldout_unseen_e10_seed1000.json").exists()
+    assert "at 600 frames, this one has 900" in capsys.readouterr().out
+
+
 def test_a_checkpoint_sweep_names_bad_arguments(tmp_path, load_benchmark):
     bench = load_benchmark("checkpoint_sweep")
     with pytest.raises(ValueError, match="--start for series without checkpoints: s9"):

@@ -11,8 +11,9 @@ judged better by the mean over its later checkpoints than by the last alone.
 
 Each positional argument is ``SERIES=CHECKPOINT``: a series label (a seed, say) and a checkpoint file, or
 ``REV:path`` for one in git history (a run's committed checkpoint at an earlier commit; extracted under ``--cache``
-with the held-out evaluations committed beside it, which are read back instead of run again). ``--start`` names the
-checkpoint a series started from (its student), drawn at 0 RL frames; the others sit at their checkpoint's frames.
+with the held-out evaluations committed beside it that measured it, which are read back instead of run again).
+``--start`` names the checkpoint a series started from (its student), drawn at 0 RL frames; the others sit at their
+checkpoint's frames.
 Every checkpoint is evaluated as ``paired_eval.py`` does: deterministic actions from the true reset, ``--episodes``
 per seen and unseen object at env seed ``--seed`` (1000, held out), cached next to the checkpoint
 (``rl.evaluate.evaluate_many``), so each checkpoint needs a folder of its own.
@@ -27,12 +28,14 @@ and a plot beside it (success against RL frames).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import subprocess
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
 from dexart_lite.utils import provenance, save_figure, write_json
 
@@ -50,8 +53,10 @@ def parse_spec(text: str) -> tuple[str, str]:
 
 def resolve(spec: str, cache: Path) -> Path:
     """The checkpoint file of ``spec``: the file itself, or ``REV:path`` extracted from git to ``cache/REV/path``
-    together with the ``heldout_*.json`` evaluations committed beside it at that revision (written after the
-    checkpoint, so that ``evaluate_many`` reads them back as newer than it)."""
+    together with the ``heldout_*.json`` evaluations committed beside it at that revision that measured it (their
+    ``frames`` are the checkpoint's; written after the checkpoint, so that ``evaluate_many`` reads them back as newer
+    than it). An evaluation of another checkpoint of the run, committed beside this one before it was evaluated
+    again, is left out, and this checkpoint is evaluated anew."""
     if Path(spec).is_file():
         return Path(spec)
     rev, sep, path = spec.partition(":")
@@ -70,9 +75,21 @@ def resolve(spec: str, cache: Path) -> Path:
         folder = str(Path(path).parent)
         names = subprocess.run(["git", "ls-tree", "--name-only", f"{rev}:{folder}"], capture_output=True,
                                text=True, cwd=REPO).stdout.split()
+        frames = checkpoint_frames(target)
         for name in (n for n in names if n.startswith("heldout_") and n.endswith(".json")):
-            (target.parent / name).write_bytes(show(f"{folder}/{name}"))
+            text = show(f"{folder}/{name}")
+            measured = json.loads(text).get("frames")
+            if measured == frames:
+                (target.parent / name).write_bytes(text)
+            else:  # committed beside this checkpoint but measured on another one (re-evaluated in a later commit)
+                print(f"{rev}:{folder}/{name} evaluated a checkpoint at {measured} frames, this one has {frames}: "
+                      "evaluated again")
     return target
+
+
+def checkpoint_frames(path: Path) -> int:
+    """The training frames a checkpoint file records."""
+    return load_checkpoint(path)["frames"]
 
 
 def summarise(series: dict, from_frames: int = 0) -> dict:

@@ -148,7 +148,8 @@ def run_arm(cfg) -> dict:
     per-batch history, machine); with the same settings it is read back (``"resumed": True``), with others it is
     an error.
 
-    - Distillation: an interrupted run (a folder without ``run.json``) starts again from scratch.
+    - Distillation: an interrupted run (a folder without ``run.json``) continues from its last finished round
+      (``resume.pt``, ``distill --resume``); one interrupted before its first round ended starts again.
     - PPO and SAC: a run with fewer frames than ``cfg.frames`` (stopped by ``max_minutes``, or asked for more)
       or interrupted (a checkpoint, no ``run.json``) continues from its checkpoint (``--resume``); the record
       says whether it did (``continued``)."""
@@ -211,14 +212,16 @@ def _same_settings(recorded: dict, cfg) -> bool:
 
 
 def _distill(cfg, out: Path) -> dict:
-    """A distillation from scratch (an interrupted one's folder is cleared first); what ``run.json`` keeps."""
+    """A distillation, continued from its last finished round if it was interrupted after one (else from scratch:
+    an interrupted one's folder is cleared first); what ``run.json`` keeps."""
     import shutil
 
-    from dexart_lite.imitation.distill import distill
+    from dexart_lite.imitation.distill import RESUME, distill
 
-    if out.exists():
+    resume = (out / RESUME).is_file()
+    if out.exists() and not resume:
         shutil.rmtree(out)
-    result = distill(cfg)
+    result = distill(dataclasses.replace(cfg, resume=resume))
     keep = {k: result[k] for k in ("seen_success", "unseen_success", "expert_frames", "student_frames", "wall_time_s")}
     return {**keep, **_eval_record(result["eval"]), "history": result["history"]}
 

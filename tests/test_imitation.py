@@ -310,6 +310,41 @@ def test_student_checkpoint_loads_strictly_and_evaluates_from_the_command_line(t
         distill(cfg)
 
 
+def test_an_interrupted_distillation_resumes_to_the_uninterrupted_student(tiny_run, tmp_path, monkeypatch):
+    """Stopped during DAgger round 2, the run keeps round 1's state; ``--resume`` ends with exactly the weights,
+    buffer sizes and frames of the uninterrupted run (same settings), then drops the resume state."""
+    from dexart_lite.imitation import distill as distill_module
+
+    cfg = dataclasses.replace(tiny_run[0], out=str(tmp_path / "run"), gif=False)
+    real, calls = distill_module.collect_dagger, []
+
+    def interrupted_in_round_2(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # the session ends here
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(distill_module, "collect_dagger", interrupted_in_round_2)
+    with pytest.raises(KeyboardInterrupt):
+        distill(cfg)
+    run_dir = Path(cfg.out)
+    assert (run_dir / "resume.pt").is_file() and (run_dir / "rounds" / "1").is_dir()
+    assert len((run_dir / "log.csv").read_text().splitlines()) == 3  # header, BC, round 1
+    with pytest.raises(ValueError, match="already holds a run; pass --resume"):
+        distill(cfg)
+    monkeypatch.setattr(distill_module, "collect_dagger", real)
+    resumed = distill(dataclasses.replace(cfg, resume=True))
+    whole = load_checkpoint(tiny_run[1]["checkpoint"])
+    again = load_checkpoint(resumed["checkpoint"])
+    assert whole["model"].keys() == again["model"].keys()
+    assert all(torch.equal(whole["model"][k], again["model"][k]) for k in whole["model"])
+    assert [(h["round"], h["buffer"], h["frames"], h["loss"]) for h in resumed["history"]] == \
+        [(h["round"], h["buffer"], h["frames"], h["loss"]) for h in tiny_run[1]["history"]]
+    assert not (run_dir / "resume.pt").exists() and not (run_dir / "rounds").exists()
+    with pytest.raises(FileNotFoundError, match="no unfinished distillation"):
+        distill(dataclasses.replace(cfg, resume=True))
+
+
 def ppo_from_student(tiny_run, tmp_path, **overrides):
     """A 1-batch (or longer) in-process PPO run started from the tiny student."""
     from dexart_lite.rl import ppo

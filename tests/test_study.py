@@ -80,6 +80,34 @@ def test_interrupted_study_resumes_without_redoing_an_arm(tmp_path, distilled):
                         progress=False)
 
 
+def test_run_arm_continues_a_distillation_interrupted_after_a_round(tmp_path, distilled, monkeypatch):
+    """A multi-seed script's distillation cut off in DAgger round 2 continues from round 1 (``resume``), it is
+    not cleared and trained again; one cut off before any round ended starts again."""
+    from dexart_lite.imitation import distill as distill_module
+
+    cfg = tiny_distill_config(tmp_path / "a", max_episode_steps=6)
+    real, calls = distill_module.collect_dagger, []
+
+    def interrupted_in_round_2(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(distill_module, "collect_dagger", interrupted_in_round_2)
+    with pytest.raises(KeyboardInterrupt):
+        study.run_arm(cfg)
+    assert (Path(cfg.out) / "rounds" / "1").is_dir() and not (Path(cfg.out) / "rounds" / "2").exists()
+    result = study.run_arm(cfg)
+    assert [c.resume for c in distilled] == [False, True] and len(calls) == 3  # round 1 was not collected again
+    assert [h["round"] for h in result["history"]] == [0, 1, 2] and result["resumed"] is False
+    assert not (Path(cfg.out) / "rounds").exists()
+    empty = tiny_distill_config(tmp_path / "b", max_episode_steps=6)
+    Path(empty.out, "demos").mkdir(parents=True)  # cut off while collecting its demonstrations
+    study.run_arm(empty)
+    assert distilled[-1].resume is False
+
+
 def test_parallel_jobs_give_the_runs_of_one_after_the_other(tmp_path):
     """``jobs=2``: the runs go to 2 worker processes (costliest first) and give what ``jobs=1`` gives
     (fast mode: one torch thread either way, and a seed replays bit for bit in any process)."""

@@ -20,6 +20,12 @@ the expert reads the simulator. ``distill`` reads top to bottom:
 4. ``checkpoint.pt`` (the PPO checkpoint format, so ``dexart-lite eval`` loads it), ``encoder.pt``
    (for ``dexart-lite train --pretrained``), ``log.csv``, evaluation on seen and unseen objects
    (``eval_seen.json``, ``eval_unseen.json``), ``rounds.png`` and ``report.md`` (``imitation/report.py``).
+
+After every round the run keeps what it needs to continue (``resume.pt``: the student, its EMA and auxiliary
+head, the log; ``rounds/<r>``: that round's samples; the demonstrations are in ``demos``), so an interrupted run
+continues from its last finished round with ``--resume`` and ends as the uninterrupted one would (every round's
+episodes and every training pass draw from generators seeded by the run's seed and the round). Both are deleted
+when the run finishes.
 """
 
 from __future__ import annotations
@@ -58,6 +64,8 @@ from dexart_lite.utils import same_settings as _same_settings
 METHODS = ("bc", "dagger")
 LOSSES = ("mse", "l1", "nll")
 CHECKPOINT = "checkpoint.pt"
+RESUME = "resume.pt"  # the state of an unfinished run after its last round (deleted when the run finishes)
+ROUNDS = "rounds"  # rounds/<r>: the samples DAgger round r added to the buffer (memory-mapped; deleted with it)
 
 
 # State entries a task's students do not see by default (drop_state="auto"). The palm velocity is nearly
@@ -145,6 +153,8 @@ class DistillConfig:
                         "there is one); it acts (DAgger, evaluation) on the CPU"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     max_minutes: float | None = field(default=None, metadata={"help": "time budget: no new DAgger round after it"})
+    resume: bool = field(default=False, metadata={"help": "continue an interrupted run in --out from its last "
+                         "finished round"})
 
     def env_kwargs(self) -> dict:
         """Keyword arguments of the env shared by collection, evaluation and the GIF."""
@@ -203,7 +213,7 @@ class DistillConfig:
 
 
 PATH_FIELDS = ("out", "demos", "pretrained")  # compared as resolved paths: runs/x and /abs/runs/x are one folder
-EXECUTION_FIELDS = ("threads", "progress", "device")  # how a run executes, not what it learns: not compared
+EXECUTION_FIELDS = ("threads", "progress", "device", "resume")  # how a run executes, not what it learns: not compared
 
 
 def same_settings(recorded: dict, cfg: DistillConfig) -> bool:
@@ -472,6 +482,35 @@ class StudentRun:
                         desc=f"distill {cfg.task} ({cfg.method}" + (f", {cfg.max_minutes:g} min budget)" if budget else ")"),
                         disable=not cfg.progress, dynamic_ncols=True)
 
+    def save_state(self) -> None:
+        """What a resumed run needs beyond the demonstrations and the rounds' samples: written after every round
+        (to a temporary file first, so an interruption mid-write leaves the previous state)."""
+        state = {"model": self.actor_critic.state_dict(), "history": self.history, "frames": self.frames,
+                 "ema": self.ema.state_dict() if self.ema is not None else None,
+                 "aux_head": self.aux_head.state_dict() if self.aux_head is not None else None}
+        temporary = self.out / (RESUME + ".tmp")
+        torch.save(state, temporary)
+        os.replace(temporary, self.out / RESUME)
+
+    def restore(self, demos: TensorDictBase) -> None:
+        """Back to the end of the last finished round of an interrupted run: weights, log, frames, and the
+        buffer refilled in its original order (demonstrations, then each round's samples)."""
+        from tensordict import TensorDict
+
+        state = torch.load(self.out / RESUME, map_location="cpu", weights_only=True)
+        self.actor_critic.load_state_dict(state["model"])
+        if self.ema is not None:
+            self.ema.load_state_dict(state["ema"])
+        if self.aux_head is not None:
+            self.aux_head.load_state_dict(state["aux_head"])
+        self.history, self.frames = state["history"], state["frames"]
+        self.buffer.extend(demos)
+        for r in range(1, len(self.history)):
+            self.buffer.extend(TensorDict.load_memmap(self.out / ROUNDS / str(r)))
+        # the clock goes on from the last round's (the time lost to the interruption is not counted)
+        self.start = time.perf_counter() - self.history[-1]["wall_s"]
+        self.bar.update(len(self.history) if not self.budget else 0)
+
     def train(self, epochs: int) -> list[float]:
         return train_student(self.actor_critic, self.buffer[:], self.cfg, epochs, self.aux_head, self.ema, self.device)
 
@@ -487,6 +526,7 @@ class StudentRun:
         self.history.append(row)
         write_log(self.out / "log.csv", self.history)
         save_student(self.out / CHECKPOINT, self.student_net, self.cfg, self.dims, self.frames, self.history)
+        self.save_state()
         self.bar.update(min(round(time.perf_counter() - self.start), self.bar.total) - self.bar.n if self.budget else 1)
         self.bar.set_postfix(loss=f"{row['loss']:.4f}", succ=f"{row['collect_success']:.2f}", frames=row["frames"])
 
@@ -505,9 +545,9 @@ class StudentRun:
 
         cfg, manifest = self.cfg, self.manifest
         scripted, student = ScriptedPolicy(self.env), policy_function(self.student_net)
-        episodes_done = len(manifest["episodes"])
+        episodes_done = len(manifest["episodes"]) + sum(row["episodes"] for row in self.history[1:])
         index_names = manifest["objects"] + [n for n in self.names if n not in manifest["objects"]]  # "object" index
-        for r in range(1, self.rounds + 1):
+        for r in range(len(self.history), self.rounds + 1):  # round 0 (BC) is history[0]; resumed: the next round
             if self.budget and time.perf_counter() - self.start > self.budget:
                 break
             tick = time.perf_counter()
@@ -518,6 +558,9 @@ class StudentRun:
                                                      episodes_done, cfg.student_noise)
             episodes_done += len(episodes)
             self.frames["student"] += samples.batch_size[0]
+            kept = self.out / ROUNDS / str(r)  # for --resume until the run ends; a folder left by an interruption
+            shutil.rmtree(kept, ignore_errors=True)  # during this round's training is this round's, made again
+            samples.memmap(prefix=str(kept))
             self.buffer.extend(samples)
             collected = time.perf_counter()
             losses = self.train(cfg.epochs_per_round)
@@ -529,12 +572,22 @@ class StudentRun:
         self.env.close()
         shutil.rmtree(self.out / "buffer", ignore_errors=True)
 
+    def forget_resume_state(self) -> None:
+        """A finished run needs no resume state: its rounds' samples are most of its disk (~90 MB per toilet round)."""
+        shutil.rmtree(self.out / ROUNDS, ignore_errors=True)
+        (self.out / RESUME).unlink(missing_ok=True)
+
 
 def open_distill_run(cfg: DistillConfig) -> tuple[Path, Path]:
-    """(run folder, demonstrations folder), refusing a folder that holds a run."""
+    """(run folder, demonstrations folder), refusing a folder that holds a run unless it is resumed, and a resume
+    without an unfinished run."""
     out = Path(cfg.out)
-    if (out / CHECKPOINT).exists():
-        raise ValueError(f"{out} already holds a run; choose another --out or delete it")
+    if cfg.resume and not (out / RESUME).is_file():
+        raise FileNotFoundError(f"--resume: no unfinished distillation in {out} (no {RESUME}: it finished, or never "
+                                "finished its first round)")
+    if (out / CHECKPOINT).exists() and not cfg.resume:
+        raise ValueError(f"{out} already holds a run; pass --resume to continue an unfinished one, choose another "
+                         "--out or delete it")
     demo_path = Path(cfg.demos) if cfg.demos else out / "demos"
     if cfg.demos:
         check_demos(read_manifest(demo_path), cfg)
@@ -553,18 +606,22 @@ def distill(cfg: DistillConfig) -> dict:
     device = resolve_device(cfg.device, log=tqdm.write)  # where the student trains
     with torch_threads(cfg.threads or os.cpu_count()):
         torch.manual_seed(cfg.seed)
-        # ---- 1. demonstrations (the expert drives, with noise)
-        if not cfg.demos:
+        # ---- 1. demonstrations (the expert drives, with noise); a resumed run has them
+        if not cfg.demos and not cfg.resume:
             collect_demos(cfg.task, cfg.split, cfg.demo_episodes_per_object, cfg.demo_noise, cfg.seed, demo_path,
                           cfg.num_points, cfg.max_episode_steps, cfg.object_names(), cfg.progress, cfg.camera_noise,
                           cfg.imagination, cfg.view_range_degrees(), cfg.encoder == "depth_cnn")
         manifest, demos = read_manifest(demo_path), load_demos(demo_path)
         run = StudentRun(cfg, out, start, device, demos, manifest)
         try:
-            run.behaviour_cloning(demos)  # ---- 2.
+            if cfg.resume:
+                run.restore(demos)
+            else:
+                run.behaviour_cloning(demos)  # ---- 2.
             run.dagger()  # ---- 3.
         finally:
             run.close()
+        run.forget_resume_state()
         student_net, frames, history = run.student_net, run.frames, run.history
         ckpt = save_student(out / CHECKPOINT, student_net, cfg, run.dims, frames, history)
         # the PointNet alone, for `dexart-lite train --pretrained` (the 2-D baseline's CNN has no such use)
@@ -578,7 +635,7 @@ def distill(cfg: DistillConfig) -> dict:
             gif = record_gif(student_net, cfg.task, out / "episode.gif", "unseen", unseen, cfg.eval_seed,
                              cfg.env_kwargs())["path"]
     curve = plot_rounds(history, evals, out / "rounds.png", title=f"{cfg.method} on {cfg.task}, {encoder_label(cfg.encoder)}")
-    wall = time.perf_counter() - start
+    wall = time.perf_counter() - run.start  # a resumed run's clock includes its earlier rounds
     report = write_report(out / "report.md", cfg, manifest, history, evals, curve, wall, gif)
     by_split = {e["split"]: e for e in evals}
     return {"checkpoint": str(ckpt), "encoder": str(encoder) if encoder else None, "report": str(report),

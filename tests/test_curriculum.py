@@ -394,6 +394,10 @@ def test_the_curriculum_benchmarks_student_step_alone_distils_and_records_each_s
     shutil.move(student, tmp_path / "results" / "checkpoints" / student.name)
     assert bench.main(argv)["per_seed"] == written["per_seed"]
     assert (student / "checkpoint.pt").stat().st_mtime_ns == stamp
+    # --jobs 2: seeds in processes of their own, rows in seed order (seed 0 read back, seed 1 distilled)
+    both = bench.main([*argv[:8], "1", "--jobs", "2", *argv[8:]])
+    assert [r["seed"] for r in both["per_seed"]] == [0, 1] and both["per_seed"][0] == written["per_seed"][0]
+    assert json.loads((tmp_path / "runs" / "laptop_cloud_student_s1" / "run.json").read_text())["config"]["seed"] == 1
     with pytest.raises(ValueError, match="student recipe"):
         bench.main([*argv[:5], "reverse_bc", *argv[6:]])
 

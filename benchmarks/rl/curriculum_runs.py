@@ -312,29 +312,35 @@ def student_success(student: DistillConfig | None) -> dict | None:
             for split in ("seen", "unseen")}
 
 
-def distil_students(students: list[DistillConfig], path: Path, argv, note: str | None) -> dict:
-    """``--students-only``: the ``student`` step alone, each seed distilled (or read back when its report exists),
-    written to ``path``: the distillation settings, per seed its frames, wall time and success, the means."""
-    from dexart_lite.rl.checkpoint import load_checkpoint
-
+def distil_students(students: list[DistillConfig], path: Path, argv, note: str | None, jobs: int = 1) -> dict:
+    """``--students-only``: the ``student`` step alone, each seed distilled (or read back when its report exists;
+    ``jobs`` seeds at a time, one process each), written to ``path`` as each seed ends: the distillation settings,
+    per seed its frames, wall time and success, the means."""
     summary = {"task": students[0].task, "obs": "cloud", "step": "student",
                "student": dataclasses.asdict(students[0]) | {"seed": None, "out": None},
                "eval_episodes_per_object": students[0].eval_episodes, "eval_seed": students[0].eval_seed,
                "per_seed": [], **provenance(__file__, argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
                **({"note": note} if note else {})}
-    for student in students:
-        run_arm(student)
-        with (Path(student.out) / "log.csv").open(newline="") as f:
-            wall = float(list(csv.DictReader(f))[-1]["wall_s"])  # the last round's training time
-        checkpoint = Path(student.out) / CHECKPOINT
-        summary["per_seed"].append({"seed": student.seed, "frames": load_checkpoint(checkpoint)["frames"],
-                                    "wall_time_s": round(wall, 1), "checkpoint": str(checkpoint),
-                                    **{f"{k}_success": v for k, v in student_success(student).items()}})
-        for key in ("seen_success", "unseen_success"):
-            summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
-        write_json(path, summary)
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for student, _ in zip(students, pool.map(run_arm, students) if jobs > 1 else map(run_arm, students)):
+            add_student(summary, student, path)
     return summary
+
+
+def add_student(summary: dict, student: DistillConfig, path: Path) -> None:
+    """One finished student's row in ``summary`` (and the means), written to ``path``."""
+    from dexart_lite.rl.checkpoint import load_checkpoint
+
+    with (Path(student.out) / "log.csv").open(newline="") as f:
+        wall = float(list(csv.DictReader(f))[-1]["wall_s"])  # the last round's training time
+    checkpoint = Path(student.out) / CHECKPOINT
+    summary["per_seed"].append({"seed": student.seed, "frames": load_checkpoint(checkpoint)["frames"],
+                                "wall_time_s": round(wall, 1), "checkpoint": str(checkpoint),
+                                **{f"{k}_success": v for k, v in student_success(student).items()}})
+    for key in ("seen_success", "unseen_success"):
+        summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
+    write_json(path, summary)
 
 
 def curve(history: list[dict]) -> list[dict]:
@@ -422,12 +428,13 @@ def main(argv=None) -> dict:
         adopt_committed(Path(run.out), args.results / "checkpoints")
     for student in filter(None, students):
         if not (Path(student.out) / "run.json").exists():
-            print(f"{Path(student.out).name}: no student yet, distilled first (~45 min per seed on two cores)")
+            print(f"{Path(student.out).name}: no student yet, distilled first (a toilet student: ~47 min beside "
+                  "another on the 2-core AMD VM, ~2 h on the Xeon; an interrupted one continues from its last round)")
     if args.students_only:
         if not students[0] or args.obs != "cloud":
             raise ValueError("--students-only needs a student recipe (e.g. student_anchored) and --obs cloud")
         return distil_students(students, args.results / f"{args.task}_cloud_{student_name(args.recipe)}.json",
-                               argv, args.note)
+                               argv, args.note, args.jobs)
     summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
                **({"student": dataclasses.asdict(students[0]) | {"seed": None, "out": None}} if students[0] else {}),
                "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,

@@ -343,6 +343,19 @@ def test_an_interrupted_distillation_resumes_to_the_uninterrupted_student(tiny_r
     assert not (run_dir / "resume.pt").exists() and not (run_dir / "rounds").exists()
     with pytest.raises(FileNotFoundError, match="no unfinished distillation"):
         distill(dataclasses.replace(cfg, resume=True))
+    # stopped in its evaluation, after the last round: resumed, it trains nothing more and evaluates
+    cfg = dataclasses.replace(cfg, out=str(tmp_path / "run_eval"))
+    real_eval = distill_module.evaluate_splits
+    monkeypatch.setattr(distill_module, "evaluate_splits", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    with pytest.raises(KeyboardInterrupt):
+        distill(cfg)
+    assert (Path(cfg.out) / "resume.pt").is_file() and not (Path(cfg.out) / "eval_seen.json").exists()
+    monkeypatch.setattr(distill_module, "evaluate_splits", real_eval)
+    monkeypatch.setattr(distill_module, "collect_dagger", interrupted_in_round_2)  # counts any round run again
+    finished = distill(dataclasses.replace(cfg, resume=True))
+    assert len(calls) == 2 and finished["seen_success"] == tiny_run[1]["seen_success"]
+    final = load_checkpoint(finished["checkpoint"])["model"]
+    assert all(torch.equal(whole["model"][k], final[k]) for k in whole["model"])
 
 
 def ppo_from_student(tiny_run, tmp_path, **overrides):

@@ -25,7 +25,7 @@ After every round the run keeps what it needs to continue (``resume.pt``: the st
 head, the log; ``rounds/<r>``: that round's samples; the demonstrations are in ``demos``), so an interrupted run
 continues from its last finished round with ``--resume`` and ends as the uninterrupted one would (every round's
 episodes and every training pass draw from generators seeded by the run's seed and the round). Both are deleted
-when the run finishes.
+once the run has written its report (a run stopped in its evaluation resumes after its last round).
 """
 
 from __future__ import annotations
@@ -621,7 +621,6 @@ def distill(cfg: DistillConfig) -> dict:
             run.dagger()  # ---- 3.
         finally:
             run.close()
-        run.forget_resume_state()
         student_net, frames, history = run.student_net, run.frames, run.history
         ckpt = save_student(out / CHECKPOINT, student_net, cfg, run.dims, frames, history)
         # the PointNet alone, for `dexart-lite train --pretrained` (the 2-D baseline's CNN has no such use)
@@ -637,6 +636,7 @@ def distill(cfg: DistillConfig) -> dict:
     curve = plot_rounds(history, evals, out / "rounds.png", title=f"{cfg.method} on {cfg.task}, {encoder_label(cfg.encoder)}")
     wall = time.perf_counter() - run.start  # a resumed run's clock includes its earlier rounds
     report = write_report(out / "report.md", cfg, manifest, history, evals, curve, wall, gif)
+    run.forget_resume_state()  # only now: a run stopped in its evaluation resumes after its last round, evaluates
     by_split = {e["split"]: e for e in evals}
     return {"checkpoint": str(ckpt), "encoder": str(encoder) if encoder else None, "report": str(report),
             "curve": str(curve), "gif": gif, "log": str(out / "log.csv"), "demos": str(demo_path),

@@ -332,6 +332,8 @@ def test_an_interrupted_distillation_resumes_to_the_uninterrupted_student(tiny_r
     assert len((run_dir / "log.csv").read_text().splitlines()) == 3  # header, BC, round 1
     with pytest.raises(ValueError, match="already holds a run; pass --resume"):
         distill(cfg)
+    with pytest.raises(ValueError, match=r"started with other settings \(lr\)"):
+        distill(dataclasses.replace(cfg, resume=True, lr=5e-4))
     monkeypatch.setattr(distill_module, "collect_dagger", real)
     resumed = distill(dataclasses.replace(cfg, resume=True))
     whole = load_checkpoint(tiny_run[1]["checkpoint"])

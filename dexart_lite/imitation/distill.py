@@ -486,6 +486,7 @@ class StudentRun:
         """What a resumed run needs beyond the demonstrations and the rounds' samples: written after every round
         (to a temporary file first, so an interruption mid-write leaves the previous state)."""
         state = {"model": self.actor_critic.state_dict(), "history": self.history, "frames": self.frames,
+                 "config": asdict(self.cfg),
                  "ema": self.ema.state_dict() if self.ema is not None else None,
                  "aux_head": self.aux_head.state_dict() if self.aux_head is not None else None}
         temporary = self.out / (RESUME + ".tmp")
@@ -498,6 +499,12 @@ class StudentRun:
         from tensordict import TensorDict
 
         state = torch.load(self.out / RESUME, map_location="cpu", weights_only=True)
+        started = state.get("config")  # None: a state saved before the settings were kept in it
+        changed = [k for k, v in asdict(self.cfg).items()
+                   if started is not None and k not in (*EXECUTION_FIELDS, *PATH_FIELDS) and started.get(k) != v]
+        if changed:
+            raise ValueError(f"--resume: {self.out} was started with other settings ({', '.join(changed)}); resume it "
+                             "with the settings it started with")
         self.actor_critic.load_state_dict(state["model"])
         if self.ema is not None:
             self.ema.load_state_dict(state["ema"])

@@ -22,7 +22,8 @@ from dexart_lite import experts
 from dexart_lite.envs import make
 from dexart_lite import demos as demos_lib
 from dexart_lite.demos import collect_demos, load_demos
-from dexart_lite.imitation.distill import (DistillConfig, collect_dagger, distill, same_settings, train_student,
+from dexart_lite.imitation.distill import (DistillConfig, collect_dagger, dagger_beta, distill, same_settings,
+                                           successful_episodes, train_student,
                                           validate)
 from dexart_lite.models.actor_critic import action_log_std, make_actor_critic, trunk_of
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, architecture, load_checkpoint
@@ -335,6 +336,9 @@ def test_an_interrupted_distillation_resumes_to_the_uninterrupted_student(tiny_r
     with pytest.raises(ValueError, match=r"started with other settings \(lr\)"):
         distill(dataclasses.replace(cfg, resume=True, lr=5e-4))
     monkeypatch.setattr(distill_module, "collect_dagger", real)
+    state = torch.load(run_dir / "resume.pt", weights_only=True)  # as if saved before these fields existed:
+    del state["config"]["beta_min"], state["config"]["drop_failed"]  # their defaults are what that run had
+    torch.save(state, run_dir / "resume.pt")
     resumed = distill(dataclasses.replace(cfg, resume=True))
     whole = load_checkpoint(tiny_run[1]["checkpoint"])
     again = load_checkpoint(resumed["checkpoint"])
@@ -506,6 +510,33 @@ def test_finetune_summary_pools_the_paired_heldout_changes_of_every_variant(tmp_
         bench.main(["--task", "toilet", "--results", str(tmp_path)])
 
 
+def test_dagger_beta_decays_to_its_floor():
+    plain = DistillConfig(beta=0.5, beta_decay=0.6)
+    assert [dagger_beta(plain, r) for r in (1, 2, 3, 4)] == pytest.approx([0.5, 0.3, 0.18, 0.108])
+    floored = dataclasses.replace(plain, beta_min=0.2)
+    assert [dagger_beta(floored, r) for r in (1, 2, 3, 4, 10)] == pytest.approx([0.5, 0.3, 0.2, 0.2, 0.2])
+
+
+def test_successful_episodes_keeps_whole_successful_episodes_only():
+    """Episodes 5 and 7 succeed at their last step, episode 6 never: every step of 5 and 7 stays, none of 6."""
+    episode = torch.tensor([5, 5, 5, 6, 6, 7, 7])
+    success = torch.tensor([False, False, True, False, False, False, True])
+    samples = TensorDict({"episode": episode, "success": success, "t": torch.tensor([0, 1, 2, 0, 1, 0, 1])},
+                         batch_size=[7])
+    kept = successful_episodes(samples)
+    assert kept["episode"].tolist() == [5, 5, 5, 7, 7] and kept["t"].tolist() == [0, 1, 2, 0, 1]
+    assert successful_episodes(samples[3:5]).batch_size == (0,)
+
+
+def test_drop_failed_rounds_add_nothing_when_every_episode_fails(demos_dir, tmp_path):
+    """8-step laptop episodes never open the lid: with ``drop_failed`` the DAgger rounds' samples stay out of the
+    buffer, while their frames are still counted (the student drove them)."""
+    cfg = tiny_distill_config(tmp_path, demos=str(demos_dir), drop_failed=True, eval_episodes=0)
+    history = distill(cfg)["history"]
+    assert [h["buffer"] for h in history] == [16, 16, 16] and [h["new_samples"] for h in history[1:]] == [0, 0]
+    assert [h["student_frames"] for h in history] == [0, STEPS, 2 * STEPS]
+
+
 def test_time_budget_stops_adding_rounds(tmp_path):
     cfg = tiny_distill_config(tmp_path, max_minutes=1e-4, eval_episodes=0)  # collects its own demonstrations
     result = distill(cfg)
@@ -521,6 +552,7 @@ def test_time_budget_stops_adding_rounds(tmp_path):
     ({"encoder": "huge"}, "valid choices: small, medium, large"),
     ({"beta": 1.5}, r"beta must be in \[0, 1\], got 1.5"),
     ({"beta": -0.1}, r"beta must be in \[0, 1\]"),
+    ({"beta_min": 1.5}, r"beta_min must be in \[0, 1\], got 1.5"),
     ({"demo_episodes_per_object": 0}, "demo_episodes_per_object must be >= 1"),
     ({"episodes_per_round": 0}, "episodes_per_round must be >= 1"),
     ({"rounds": -1}, "rounds must be >= 1"),

@@ -207,12 +207,22 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # share: its own states, the expert's labels). The toilet students' round 6 opens about half the toilets it collects
 # on (0.51 and 0.57: runs/curriculum/toilet_cloud_student_s*/log.csv); on the faucet's state clones 8 rounds instead
 # of 3 lifted 0.80 -> 0.91 seen (clone_capacity_faucet_state_rounds8.json)
-STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "rounds10": {"rounds": 10}}
+# betafloor: beta never below 0.2 (rounds 3-6 at 0.2 instead of 0.18, 0.11, 0.06, 0.04): the expert keeps driving a
+# fifth of the steps, where the toilet students' collections still open ~0.9 of the toilets (rounds10: they fall
+# once beta < 0.1, and the students with more low-beta rounds are worse)
+# successonly: only the DAgger rounds' successful episodes join the buffer (drop_failed), so the states of failed
+# episodes, which fill the low-beta rounds, are not fitted
+STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "rounds10": {"rounds": 10},
+                    "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}}
 # student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
 RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
 # student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students
 RECIPES["student_rounds10_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
                                                          "student": "rounds10"}
+# ... and from the betafloor and successonly students
+for _variant in ("betafloor", "successonly"):
+    RECIPES[f"student_{_variant}_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
+                                                                 "student": _variant}
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's

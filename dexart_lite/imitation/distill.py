@@ -16,7 +16,8 @@ the expert reads the simulator. ``distill`` reads top to bottom:
    in which each step executes the expert's action with probability beta, else the student's
    deterministic action; the expert labels EVERY visited state; the samples join the aggregate
    buffer (at most ``max_samples``, oldest dropped) and the student trains on all of it, from its
-   current weights. beta is multiplied by ``beta_decay`` after each round;
+   current weights. beta is multiplied by ``beta_decay`` after each round (never below ``beta_min``);
+   with ``drop_failed`` only the round's successful episodes join the buffer;
 4. ``checkpoint.pt`` (the PPO checkpoint format, so ``dexart-lite eval`` loads it), ``encoder.pt``
    (for ``dexart-lite train --pretrained``), ``log.csv``, evaluation on seen and unseen objects
    (``eval_seen.json``, ``eval_unseen.json``), ``rounds.png`` and ``report.md`` (``imitation/report.py``).
@@ -98,6 +99,10 @@ class DistillConfig:
     epochs_per_round: int = field(default=6, metadata={"help": "epochs over the aggregate buffer after each round"})
     beta: float = field(default=0.5, metadata={"help": "DAgger: probability of executing the expert's action, round 1"})
     beta_decay: float = field(default=0.6, metadata={"help": "DAgger: beta is multiplied by this after each round"})
+    beta_min: float = field(default=0.0, metadata={"help": "DAgger: beta never falls below this (the expert keeps "
+                            "driving about this share of the steps in every round); 0: plain decay"})
+    drop_failed: bool = field(default=False, metadata={"help": "DAgger: the buffer keeps only the samples of the "
+                              "round's successful episodes (the failed ones' states and labels are dropped)"})
     student_noise: float = field(default=0.0, metadata={"help": "DAgger: std of Gaussian noise on the student's "
                                  "executed actions (its labels stay the expert's clean actions); 0: none"})
     lr: float = field(default=1e-3, metadata={"help": "Adam learning rate"})
@@ -241,7 +246,7 @@ def validate(cfg: DistillConfig) -> None:
         raise ValueError(f"ema must be in [0, 1), got {cfg.ema}")
     if not (math.isfinite(cfg.student_noise) and cfg.student_noise >= 0):
         raise ValueError(f"student_noise must be a finite std >= 0, got {cfg.student_noise}")
-    for name in ("beta", "beta_decay"):
+    for name in ("beta", "beta_decay", "beta_min"):
         if not 0.0 <= getattr(cfg, name) <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {getattr(cfg, name)}")
     if not (math.isfinite(cfg.demo_noise) and cfg.demo_noise >= 0):
@@ -440,6 +445,19 @@ class Mixture:
         return np.clip(action, -1.0, 1.0)
 
 
+def dagger_beta(cfg: DistillConfig, r: int) -> float:
+    """The probability that the expert's action is executed in DAgger round ``r`` (1, 2, ...): ``beta`` decayed by
+    ``beta_decay`` per round, never below ``beta_min``."""
+    return max(cfg.beta_min, cfg.beta * cfg.beta_decay ** (r - 1))
+
+
+def successful_episodes(samples: TensorDictBase) -> TensorDictBase:
+    """The samples of the episodes that succeeded at some step (``samples["success"]`` is the success after each
+    step, ``samples["episode"]`` the episode's index)."""
+    episode = samples["episode"]
+    return samples[torch.isin(episode, episode[samples["success"].bool()])]
+
+
 def collect_dagger(env, expert: Policy, student: Policy, episodes: list[tuple[int, str]], beta: float,
                    rng: np.random.Generator, objects: list[str], first_episode: int = 0, student_noise: float = 0.0):
     """One DAgger round: ``(samples, episode results, share of steps the expert drove)``."""
@@ -500,8 +518,9 @@ class StudentRun:
 
         state = torch.load(self.out / RESUME, map_location="cpu", weights_only=True)
         started = state.get("config")  # None: a state saved before the settings were kept in it
-        changed = [k for k, v in asdict(self.cfg).items()
-                   if started is not None and k not in (*EXECUTION_FIELDS, *PATH_FIELDS) and started.get(k) != v]
+        defaults = asdict(DistillConfig())  # a field added after the state was saved: the run had its default
+        changed = [k for k, v in asdict(self.cfg).items() if started is not None
+                   and k not in (*EXECUTION_FIELDS, *PATH_FIELDS) and started.get(k, defaults[k]) != v]
         if changed:
             raise ValueError(f"--resume: {self.out} was started with other settings ({', '.join(changed)}); resume it "
                              "with the settings it started with")
@@ -512,11 +531,20 @@ class StudentRun:
             self.aux_head.load_state_dict(state["aux_head"])
         self.history, self.frames = state["history"], state["frames"]
         self.buffer.extend(demos)
-        for r in range(1, len(self.history)):
-            self.buffer.extend(TensorDict.load_memmap(self.out / ROUNDS / str(r)))
+        for r in range(1, len(self.history)):  # rounds/<r> holds all of round r's samples: filtered as they were
+            self.extend(TensorDict.load_memmap(self.out / ROUNDS / str(r)))
         # the clock goes on from the last round's (the time lost to the interruption is not counted)
         self.start = time.perf_counter() - self.history[-1]["wall_s"]
         self.bar.update(len(self.history) if not self.budget else 0)
+
+    def extend(self, samples: TensorDictBase) -> int:
+        """Add a DAgger round's samples to the buffer (only its successful episodes' with ``drop_failed``);
+        returns how many were added."""
+        if self.cfg.drop_failed:
+            samples = successful_episodes(samples)
+        if samples.batch_size[0]:
+            self.buffer.extend(samples)
+        return samples.batch_size[0]
 
     def train(self, epochs: int) -> list[float]:
         return train_student(self.actor_critic, self.buffer[:], self.cfg, epochs, self.aux_head, self.ema, self.device)
@@ -558,7 +586,7 @@ class StudentRun:
             if self.budget and time.perf_counter() - self.start > self.budget:
                 break
             tick = time.perf_counter()
-            beta = cfg.beta * cfg.beta_decay ** (r - 1)
+            beta = dagger_beta(cfg, r)
             episodes = episode_list(self.names, cfg.episodes_per_round, np.random.default_rng([cfg.seed, 2, r]))
             samples, results, share = collect_dagger(self.env, scripted, student, episodes, beta,
                                                      np.random.default_rng([cfg.seed, 3, r]), index_names,
@@ -568,10 +596,10 @@ class StudentRun:
             kept = self.out / ROUNDS / str(r)  # for --resume until the run ends; a folder left by an interruption
             shutil.rmtree(kept, ignore_errors=True)  # during this round's training is this round's, made again
             samples.memmap(prefix=str(kept))
-            self.buffer.extend(samples)
+            added = self.extend(samples)
             collected = time.perf_counter()
             losses = self.train(cfg.epochs_per_round)
-            self.log_round("dagger", beta, len(results), per_object_summary(results), samples.batch_size[0], losses,
+            self.log_round("dagger", beta, len(results), per_object_summary(results), added, losses,
                            share, collected - tick, time.perf_counter() - collected)
 
     def close(self) -> None:

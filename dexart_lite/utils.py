@@ -153,12 +153,13 @@ def write_json(path, obj) -> None:
     path.write_text(json.dumps(obj, indent=2) + "\n")
 
 
-def same_settings(recorded: dict, cfg, paths=(), execution=()) -> bool:
-    """Whether a finished run's recorded config (``asdict`` of a dataclass config such as ``DistillConfig`` or
-    ``PPOConfig``) is ``cfg``. A field added after the run was recorded counts as equal when ``cfg`` leaves it at
-    its default, which is what the run did: finished runs keep being read back when the config gains an option.
-    Fields in ``paths`` are compared as resolved paths (runs/x and /abs/runs/x are one folder); fields in
-    ``execution`` (how a run executes, not what it learns: torch threads, the progress bar) are not compared."""
+def changed_settings(recorded: dict, cfg, paths=(), execution=()) -> list[str]:
+    """The fields of the dataclass config ``cfg`` whose value differs from a run's recorded config (``asdict`` of
+    one such as ``DistillConfig`` or ``PPOConfig``). A field added after the run was recorded counts as equal when
+    ``cfg`` leaves it at its default, which is what the run did: runs keep being read back and resumed when the
+    config gains an option. Fields in ``paths`` are compared as resolved paths (runs/x and /abs/runs/x are one
+    folder); fields in ``execution`` (how a run executes, not what it learns: torch threads, the progress bar) are
+    not compared."""
     from dataclasses import asdict
     from pathlib import Path
 
@@ -166,8 +167,16 @@ def same_settings(recorded: dict, cfg, paths=(), execution=()) -> bool:
         return str(Path(v).resolve()) if key in paths and isinstance(v, str) else v
 
     settings, defaults = asdict(cfg), asdict(type(cfg)())
-    return set(recorded) <= set(settings) and all(value(k, recorded.get(k, defaults[k])) == value(k, v)
-                                                  for k, v in settings.items() if k not in execution)
+    return [k for k, v in settings.items()
+            if k not in execution and value(k, recorded.get(k, defaults[k])) != value(k, v)]
+
+
+def same_settings(recorded: dict, cfg, paths=(), execution=()) -> bool:
+    """Whether a finished run's recorded config is ``cfg`` (``changed_settings``); a recorded field ``cfg`` no longer
+    has makes it another run."""
+    from dataclasses import asdict
+
+    return set(recorded) <= set(asdict(cfg)) and not changed_settings(recorded, cfg, paths, execution)
 
 
 def parse_overrides(pairs: list[str], config_class) -> dict:

@@ -60,7 +60,7 @@ from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate_splits, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes
 from dexart_lite.utils import DEVICES, check_choice, resolve_device, write_json
-from dexart_lite.utils import same_settings as _same_settings
+from dexart_lite.utils import changed_settings, same_settings as _same_settings
 
 METHODS = ("bc", "dagger")
 LOSSES = ("mse", "l1", "nll")
@@ -518,9 +518,8 @@ class StudentRun:
 
         state = torch.load(self.out / RESUME, map_location="cpu", weights_only=True)
         started = state.get("config")  # None: a state saved before the settings were kept in it
-        defaults = asdict(DistillConfig())  # a field added after the state was saved: the run had its default
-        changed = [k for k, v in asdict(self.cfg).items() if started is not None
-                   and k not in (*EXECUTION_FIELDS, *PATH_FIELDS) and started.get(k, defaults[k]) != v]
+        changed = [] if started is None else changed_settings(started, self.cfg,
+                                                              execution=(*EXECUTION_FIELDS, *PATH_FIELDS))
         if changed:
             raise ValueError(f"--resume: {self.out} was started with other settings ({', '.join(changed)}); resume it "
                              "with the settings it started with")

@@ -223,6 +223,9 @@ RECIPES["student_rounds10_anchored_floor_reverse_d17"] = {**RECIPES["student_anc
 for _variant in ("betafloor", "successonly"):
     RECIPES[f"student_{_variant}_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
                                                                  "student": _variant}
+# student_successonly_anchored_release: the toilets' headline RL recipe (student_anchored_release, 38 min per seed)
+# from the successonly students, RL's gain over the better students on the same budget
+RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_release"], "student": "successonly"}
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's

@@ -52,7 +52,7 @@ HEADLINE = {
     # otherwise, curriculum_runs.py's `successonly` variant), 3 seeds on the same evaluation as the others
     "toilet": {"student": "rl/curriculum/toilet_cloud_student_successonly.json",
                "student_label": "DAgger on successful episodes only",
-               "rl": "toilet_cloud_student_successonly_anchored_release.json",
+               "rl": "toilet_cloud_student_successonly_anchored_release_std05.json",
                "rl_state": None},
 }
 

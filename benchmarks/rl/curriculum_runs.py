@@ -164,11 +164,18 @@ RECIPES["student_anchored_floor_reverse_eager"] = {**RECIPES["student_anchored_f
 # sum((delta mu)^2) / (2 std^2), so the anchor's weight and floor are multiplied by (0.03 / 0.1)^2 and the KL early stop
 # divided by it: they hold the policy's mean actions as near to the student, and let them move as far per batch, as at
 # std 0.1 (PPO's ratio clip, 0.2, is unchanged and so binds sooner in action units)
-_STD_RATIO2 = (0.03 / 0.1) ** 2
-_BASE = RECIPES["student_anchored_floor_reverse"]
-RECIPES["student_anchored_floor_reverse_std03"] = {
-    **_BASE, "init_log_std": round(math.log(0.03), 4), "anchor_coef": _BASE["anchor_coef"] * _STD_RATIO2,
-    "anchor_floor": _BASE["anchor_floor"] * _STD_RATIO2, "target_kl": round(_BASE["target_kl"] / _STD_RATIO2, 4)}
+
+
+def at_std(recipe: dict, std: float) -> dict:
+    """``recipe`` (an anchored one at exploration std 0.1) at exploration std ``std``: the anchor's weight and floor
+    multiplied by (std / 0.1)^2, the KL early stop divided by it (see student_anchored_floor_reverse_std03)."""
+    ratio2 = (std / 0.1) ** 2
+    return {**recipe, "init_log_std": round(math.log(std), 4), "anchor_coef": recipe["anchor_coef"] * ratio2,
+            **({"anchor_floor": recipe["anchor_floor"] * ratio2} if "anchor_floor" in recipe else {}),
+            "target_kl": round(recipe["target_kl"] / ratio2, 4)}
+
+
+RECIPES["student_anchored_floor_reverse_std03"] = at_std(RECIPES["student_anchored_floor_reverse"], 0.03)
 # student_anchored_floor_reverse_std03_backoff: the same with a frontier that also moves forward 5 steps after 6
 # failures in a row from it (Florensa et al. keep starts at 0.1-0.9 success; RFCL only moves back). At std 0.03 the
 # collected success fell from 0.6 to 0.2 within 150k frames and nothing brought it back (docs item 27); 3 successes
@@ -230,11 +237,7 @@ RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_r
 # students the std-0.1 collections open ~0.5 of the toilets against 0.67 deterministic, and the released anchor lost
 # -0.10 / -0.07 held out (docs item 34): PPO improved the noisy policy, not the deterministic one. The anchor's weight
 # is multiplied by (0.05 / 0.1)^2 and the KL early stop divided by it, as for std03 above
-_STD05 = (0.05 / 0.1) ** 2
-_RELEASE = RECIPES["student_successonly_anchored_release"]
-RECIPES["student_successonly_anchored_release_std05"] = {
-    **_RELEASE, "init_log_std": round(math.log(0.05), 4), "anchor_coef": _RELEASE["anchor_coef"] * _STD05,
-    "target_kl": round(_RELEASE["target_kl"] / _STD05, 4)}
+RECIPES["student_successonly_anchored_release_std05"] = at_std(RECIPES["student_successonly_anchored_release"], 0.05)
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's

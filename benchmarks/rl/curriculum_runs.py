@@ -238,6 +238,13 @@ RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_r
 # -0.10 / -0.07 held out (docs item 34): PPO improved the noisy policy, not the deterministic one. The anchor's weight
 # is multiplied by (0.05 / 0.1)^2 and the KL early stop divided by it, as for std03 above
 RECIPES["student_successonly_anchored_release_std05"] = at_std(RECIPES["student_successonly_anchored_release"], 0.05)
+# the faucets' and laptops' headline point-cloud recipes from successonly students: their DAgger collections succeed
+# 0.68-0.85 in the last rounds (toilets: 0.60-0.74, where the filter lifted the students from 0.47 / 0.30 to
+# 0.68 / 0.31), so a fifth to a third of those rounds' episodes are dropped
+RECIPES["student_successonly_anchored_floor_flat_b16k"] = {**RECIPES["student_anchored_floor_flat_b16k"],
+                                                           "student": "successonly"}
+RECIPES["student_successonly_anchored_release_flat"] = {**RECIPES["student_anchored_release_flat"],
+                                                        "student": "successonly"}
 # per batch: the collected episodes' success (all, from the true reset, from the frontier), the curriculum, the share of
 # steps in each stage (where a failing learner stops), the critic's error at the episodes' first step, how much of
 # the planned update the KL stop let through, the BC term's weight; the episodes' mean return (unscaled, on the run's

@@ -238,6 +238,12 @@ RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_r
 # -0.10 / -0.07 held out (docs item 34): PPO improved the noisy policy, not the deterministic one. The anchor's weight
 # is multiplied by (0.05 / 0.1)^2 and the KL early stop divided by it, as for std03 above
 RECIPES["student_successonly_anchored_release_std05"] = at_std(RECIPES["student_successonly_anchored_release"], 0.05)
+# student_successonly_anchored_floor_reverse_d17_std05: from the same students, the toilet recipe that gained most
+# from the older students (the reverse curriculum over one demonstration per seen toilet with the anchor's floor,
+# docs item 29: +0.12 / +0.05 at 864k frames) at exploration std 0.05, where the released anchor held seen toilets
+# (item 35); the floor keeps a tenth of the anchor's weight instead of letting it go
+RECIPES["student_successonly_anchored_floor_reverse_d17_std05"] = at_std(
+    RECIPES["student_successonly_anchored_floor_reverse_d17"], 0.05)
 # the faucets' and laptops' headline point-cloud recipes from successonly students: their DAgger collections succeed
 # 0.68-0.85 in the last rounds (toilets: 0.60-0.74, where the filter lifted the students from 0.47 / 0.30 to
 # 0.68 / 0.31), so a fifth to a third of those rounds' episodes are dropped

@@ -922,3 +922,22 @@ def test_distill_without_tank_writes_the_fields_it_documents(tmp_path, load_benc
     assert {"command", "machine", "eval_episodes_per_object", "seen_success", "unseen_success"} <= out.keys()
     with pytest.raises(ValueError, match="--prob must be a probability"):
         bench.main(["--prob", "1.5"])
+
+
+@pytest.mark.parametrize("drop_failed", [False, True])
+def test_state_student_drop_failed_keeps_only_the_successful_dagger_episodes(drop_failed, monkeypatch, load_benchmark):
+    """state_student.py --drop-failed: a DAgger round adds the samples of its successful episodes only (here the first
+    of its two 10-step episodes is marked successful); the demonstrations (round 0) are all kept."""
+    monkeypatch.setenv("DEXART_LITE_FAST", "1")  # 1 object, 10-step episodes, 1 demonstration, 1 DAgger round
+    script = load_benchmark("state_student")
+    real = script.run_episodes
+
+    def first_succeeds(*args, **kwargs):
+        results = real(*args, **kwargs)
+        return [{**r, "success": i == 0} for i, r in enumerate(results)]
+
+    monkeypatch.setattr(script, "run_episodes", first_succeeds)
+    result = script.main(["--task", "laptop", "--episodes-per-round", "2", *(["--drop-failed"] if drop_failed else [])])
+    demos, dagger = result["history"]
+    assert (demos["kept_episodes"], demos["samples"]) == (1, 10)
+    assert (dagger["kept_episodes"], dagger["samples"]) == ((1, 20) if drop_failed else (2, 30))

@@ -89,6 +89,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--episodes-per-round", type=int, default=2, help="per object")
     parser.add_argument("--beta", type=float, default=0.5)
     parser.add_argument("--beta-decay", type=float, default=0.6)
+    parser.add_argument("--beta-min", type=float, default=0.0, help="beta never falls below this (distill's beta_min)")
+    parser.add_argument("--drop-failed", action="store_true", help="DAgger rounds keep only their successful "
+                        "episodes' samples (distill's drop_failed; the demonstrations are all kept)")
     parser.add_argument("--steps", type=int, default=3000, help="Adam steps (batch 256) after the demos and each round")
     parser.add_argument("--eval-episodes", type=int, default=2, help="per object and split")
     parser.add_argument("--json", type=Path)
@@ -108,15 +111,19 @@ def main(argv=None) -> dict:
     optimizer = torch.optim.Adam(student.parameters(), lr=1e-3)
     inputs, labels, history = [], [], []
     for r in range(args.rounds + 1):  # round 0: the demonstrations (the expert drives, with noise)
-        beta = 1.0 if r == 0 else args.beta * args.beta_decay ** (r - 1)
+        beta = 1.0 if r == 0 else max(args.beta * args.beta_decay ** (r - 1), args.beta_min)
         driver = Driver(expert, student, beta, args.noise if r == 0 else 0.0, rng)
         per = args.demo_episodes_per_object if r == 0 else args.episodes_per_round
-        results = run_episodes(driver, env, episode_list(names, per, np.random.default_rng([args.seed, 1, r])))
-        inputs += driver.inputs
-        labels += driver.labels
+        starts = []  # index of each episode's first sample in driver.inputs
+        results = run_episodes(driver, env, episode_list(names, per, np.random.default_rng([args.seed, 1, r])),
+                               on_reset=lambda obs, info: starts.append(len(driver.inputs)))
+        keep = [(a, b) for a, b, result in zip(starts, starts[1:] + [len(driver.inputs)], results)
+                if r == 0 or result["success"] or not args.drop_failed]
+        inputs += [x for a, b in keep for x in driver.inputs[a:b]]
+        labels += [y for a, b in keep for y in driver.labels[a:b]]
         loss = fit(student, inputs, labels, args.steps, optimizer, generator)
         history.append({"round": r, "beta": beta, "collect_success": per_object_summary(results)["success_rate"],
-                        "samples": len(labels), "loss": loss, "wall_s": round(time.perf_counter() - start, 1)})
+                        "kept_episodes": len(keep), "samples": len(labels), "loss": loss, "wall_s": round(time.perf_counter() - start, 1)})
         print(history[-1], flush=True)
     env.close()
     evaluation = {}

@@ -10,6 +10,9 @@ with the statistics of the data. No point cloud is involved (the env still rende
 ignored). If this student succeeds where the point-cloud student fails, the expert is imitable and the
 bottleneck is perception: reading the lid's pose and shape precisely from 608 points.
 
+``--drop-failed`` and ``--beta-min`` are distill's ``drop_failed`` and ``beta_min``: the DAgger rounds keep only the
+samples of their successful episodes, and the expert drives at least that share of the steps in every round.
+
 Evaluation: deterministic actions, ``--eval-episodes`` per object on seen and unseen objects, env
 seeds fixed. One seed per run (``--seed``); the JSON records the command and the machine.
 """
@@ -123,7 +126,8 @@ def main(argv=None) -> dict:
         labels += [y for a, b in keep for y in driver.labels[a:b]]
         loss = fit(student, inputs, labels, args.steps, optimizer, generator)
         history.append({"round": r, "beta": beta, "collect_success": per_object_summary(results)["success_rate"],
-                        "kept_episodes": len(keep), "samples": len(labels), "loss": loss, "wall_s": round(time.perf_counter() - start, 1)})
+                        "kept_episodes": len(keep), "samples": len(labels), "loss": loss,
+                        "wall_s": round(time.perf_counter() - start, 1)})
         print(history[-1], flush=True)
     env.close()
     evaluation = {}

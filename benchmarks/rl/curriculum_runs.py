@@ -467,8 +467,8 @@ def main(argv=None) -> dict:
         adopt_committed(Path(run.out), args.results / "checkpoints")
     for student in filter(None, students):
         if not (Path(student.out) / "run.json").exists():
-            print(f"{Path(student.out).name}: no student yet, distilled first (a toilet student: ~47 min beside "
-                  "another on the 2-core AMD VM, ~2 h on the Xeon; an interrupted one continues from its last round)")
+            print(f"{Path(student.out).name}: no student yet, distilled first (beside another on 2 cores: "
+                  "~30 min a faucet student, 37-47 min a toilet one; an interrupted one continues from its last round)")
     if args.students_only:
         if not students[0] or args.obs != "cloud":
             raise ValueError("--students-only needs a student recipe (e.g. student_anchored) and --obs cloud")

@@ -31,6 +31,7 @@ from dexart_lite.envs import make
 from dexart_lite.demos import episode_list
 from dexart_lite.rollout import noisy, per_object_summary, run_episodes
 from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.imitation.distill import dagger_beta
 from dexart_lite.utils import fast_mode, provenance, write_json
 
 
@@ -114,7 +115,7 @@ def main(argv=None) -> dict:
     optimizer = torch.optim.Adam(student.parameters(), lr=1e-3)
     inputs, labels, history = [], [], []
     for r in range(args.rounds + 1):  # round 0: the demonstrations (the expert drives, with noise)
-        beta = 1.0 if r == 0 else max(args.beta * args.beta_decay ** (r - 1), args.beta_min)
+        beta = 1.0 if r == 0 else dagger_beta(args, r)  # distill's schedule (args has its three fields)
         driver = Driver(expert, student, beta, args.noise if r == 0 else 0.0, rng)
         per = args.demo_episodes_per_object if r == 0 else args.episodes_per_round
         starts = []  # index of each episode's first sample in driver.inputs

@@ -33,7 +33,7 @@ DEFAULT_KEYS = ("success_rate", "episode_return", "bc_weight")
 LABELS = {"success_rate": "success of the collected episodes", "episode_return": "mean episode return (own reward)",
           "bc_weight": "BC term weight", "anchor_weight": "anchor weight", "episode_length": "episode length (steps)",
           "kl_init": "KL to the initial policy (nats/step)", "frontier_mean": "mean start frontier (guide steps)",
-          "success_h0": "success of the episodes started at the reset", "start_mean": "mean start (guide steps)"}
+          "success_h0": "success from the reset", "start_mean": "mean start (guide steps)"}
 
 
 def frames_label(n: int) -> str:

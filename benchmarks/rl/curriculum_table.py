@@ -50,8 +50,8 @@ HEADLINE = {
                "rl_state": "laptop_state_dagger_wide.json"},
     # toilet: the DAgger student that keeps only its successful episodes (drop_failed; the headline settings
     # otherwise, curriculum_runs.py's `successonly` variant), 3 seeds on the same evaluation as the others; RL: the
-    # reverse curriculum at std 0.05 from those students, level with them on both splits held out (docs item 36;
-    # the released anchor at std 0.05, item 35, holds seen toilets and loses unseen ones)
+    # reverse curriculum at std 0.05 from those students, the best held out against them (docs item 36; the released
+    # anchor at std 0.05, item 35, holds seen toilets and loses unseen ones)
     "toilet": {"student": "rl/curriculum/toilet_cloud_student_successonly.json",
                "student_label": "DAgger on successful episodes only",
                "rl": "toilet_cloud_student_successonly_anchored_floor_reverse_d17_std05.json",

@@ -25,10 +25,7 @@ import argparse
 import dataclasses
 import json
 import os
-import signal
-import threading
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +33,8 @@ import numpy as np
 
 from dexart_lite import objects as objects_lib
 from dexart_lite.registration import SPECS, TASKS
-from dexart_lite.utils import check_choice, fast_mode, machine_info, parse_overrides, write_json
+from dexart_lite.utils import (check_choice, fast_mode, machine_info, parse_overrides, process_pool,
+                                sigterm_interrupts, write_json)
 from dexart_lite.utils import same_settings as utils_same_settings
 
 RESULT = "run.json"  # in each arm/seed folder: the settings and the results of a finished run
@@ -349,60 +347,6 @@ def _evaluate_camera(checkpoint: str, task: str, split: str, episodes: int, seed
     return evaluate(student, task, split, episodes, seed, env_kwargs)["success_rate"]
 
 
-@contextmanager
-def _sigterm_interrupts():
-    """In the study's main process: while the runs go, SIGTERM (``kill``, ``timeout``, a job scheduler)
-    raises ``KeyboardInterrupt``, as Ctrl-C does, so that ``_process_pool`` stops its workers instead of
-    leaving them to finish their runs unwatched. Only the main thread may set a handler; elsewhere a no-op."""
-
-    def interrupt(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-def _exit_on_sigterm() -> None:
-    """In a worker process (the pool's initializer): SIGTERM terminates the worker's own children (the
-    pool of a viewpoint evaluation), then ends the worker at once, without a traceback."""
-    import multiprocessing
-
-    def stop(signum, frame):
-        for child in multiprocessing.active_children():
-            child.terminate()
-        os._exit(128 + signum)
-
-    signal.signal(signal.SIGTERM, stop)
-
-
-@contextmanager
-def _process_pool(workers: int):
-    """A ``ProcessPoolExecutor`` of ``workers`` spawned processes that, when the body raises (an error,
-    Ctrl-C, SIGTERM), drops the queued calls and terminates the running ones: a stopped study leaves no
-    process behind. A terminated worker terminates its own children first (``_exit_on_sigterm``)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=_exit_on_sigterm)
-    try:
-        yield pool
-    except BaseException:
-        processes = list((pool._processes or {}).values())  # private; Python 3.14 has pool.terminate_workers()
-        pool.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
-            process.terminate()
-        for process in processes:
-            process.join(timeout=30)
-        raise
-    pool.shutdown()
-
-
 def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unseen"), workers: int | None = None) -> dict:
     """Success of the student in ``cfg.out`` under every camera of ``camera_grid``: ``{split: 5 x 7 list}``
     (rows polar, columns azimuth), deterministic actions, the run's evaluation seed and env settings
@@ -422,7 +366,7 @@ def evaluate_viewpoints(cfg, episodes_per_object: int = 1, splits=("seen", "unse
     args = [(str(out / "checkpoint.pt"), cfg.task, split, episodes_per_object, cfg.eval_seed, kwargs)
             for _, _, split, kwargs in cells]
     workers = max(1, workers or os.cpu_count() or 1)
-    with _process_pool(workers) as pool:
+    with process_pool(workers) as pool:
         rates = list(pool.map(_evaluate_camera, *zip(*args)))
     grid = {split: np.zeros((len(VIEW_POLARS), len(VIEW_AZIMUTHS))) for split in splits}
     for (a, p, split, _), rate in zip(cells, rates):
@@ -479,7 +423,7 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
     pretraining = prepare_pretrained(task, out, progress=progress) if study.pretraining else None
     configs = [(arm, seed, arm_config(study, arm, task, seed, out, overrides)) for arm in arms for seed in seeds]
     records: dict[tuple[str, int], dict] = {}
-    with _sigterm_interrupts(), tqdm(total=len(configs), desc=f"study {name} on {task}", unit="run",
+    with sigterm_interrupts(), tqdm(total=len(configs), desc=f"study {name} on {task}", unit="run",
                                      disable=not progress, dynamic_ncols=True) as bar:
         if jobs == 1:
             for arm, seed, cfg in configs:
@@ -491,7 +435,7 @@ def run_study(name: str, task: str, seeds: list[int], out: str | Path, arms: lis
             # the costliest runs first, so that the last one, which runs alone on its share of the cores,
             # is a cheap one (sorted is stable: arms of equal cost keep the study's order)
             queue = sorted(configs, key=lambda c: -_training_cost(c[2]))
-            with _process_pool(jobs) as pool:  # stopped (error, Ctrl-C, SIGTERM): no worker outlives it
+            with process_pool(jobs) as pool:  # stopped (error, Ctrl-C, SIGTERM): no worker outlives it
                 futures = {pool.submit(_run_job, cfg if cfg.threads else dataclasses.replace(cfg, threads=threads),
                                        study.viewpoints, threads): (arm, seed) for arm, seed, cfg in queue}
                 for future in as_completed(futures):

@@ -5,6 +5,8 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import signal
+import threading
 
 
 def fast_mode() -> bool:
@@ -255,3 +257,59 @@ def optimizer_to(optimizer, device) -> None:
         for key, value in state.items():
             if torch.is_tensor(value) and key != "step":
                 state[key] = value.to(device)
+
+
+@contextlib.contextmanager
+def sigterm_interrupts():
+    """In a launcher's main process (a study, ``curriculum_runs.py``): while the runs go, SIGTERM (``kill``,
+    ``timeout``, a job scheduler) raises ``KeyboardInterrupt``, as Ctrl-C does, so that ``process_pool`` stops its
+    workers instead of leaving them to finish their runs unwatched (``kill`` reaches the launcher alone, where
+    Ctrl-C reaches its whole process group). Only the main thread may set a handler;
+    elsewhere a no-op."""
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _exit_on_sigterm() -> None:
+    """In a worker process (the pool's initializer): SIGTERM terminates the worker's own children (the
+    pool of a viewpoint evaluation), then ends the worker at once, without a traceback."""
+    import multiprocessing
+
+    def stop(signum, frame):
+        for child in multiprocessing.active_children():
+            child.terminate()
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
+
+
+@contextlib.contextmanager
+def process_pool(workers: int):
+    """A ``ProcessPoolExecutor`` of ``workers`` spawned processes that, when the body raises (an error,
+    Ctrl-C, SIGTERM), drops the queued calls and terminates the running ones: a stopped launcher leaves no
+    process behind. A terminated worker terminates its own children first (``_exit_on_sigterm``)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=_exit_on_sigterm)
+    try:
+        yield pool
+    except BaseException:
+        processes = list((pool._processes or {}).values())  # private; Python 3.14 has pool.terminate_workers()
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join(timeout=30)
+        raise
+    pool.shutdown()

@@ -539,3 +539,49 @@ def test_success_from_h_replays_the_demonstration_so_the_expert_still_succeeds_f
         bench.main(["--task", "laptop", "--policy", "expert", "--demos", "1", "--h", "0", "400"])
     with pytest.raises(ValueError, match="--noise takes stds >= 0"):
         bench.main(["--task", "laptop", "--policy", "expert", "--noise", "0", "-0.1"])
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process tree from /proc (Linux)")
+def test_kill_on_curriculum_runs_stops_its_seeds_and_leaves_no_worker_behind(tmp_path):
+    """``kill`` (SIGTERM) on ``curriculum_runs.py --jobs 2`` ends it as Ctrl-C does, with one line and exit status
+    130, and its two worker processes, each busy in a PPO run of 1M frames, end with it: a launcher stopped alone
+    must not leave seeds training unwatched (their results would never reach the JSON)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.processes import descendants, living_processes
+
+    script = Path(__file__).resolve().parent.parent / "benchmarks" / "rl" / "curriculum_runs.py"
+    env = {k: v for k, v in os.environ.items() if k != "DEXART_LITE_FAST"}  # fast mode would shrink the runs
+    runs, stderr = tmp_path / "runs", tmp_path / "stderr.txt"  # a file, not a pipe: a leftover would hold a pipe open
+    workers: set[int] = set()
+    with stderr.open("w") as err:
+        main = subprocess.Popen([sys.executable, str(script), "--task", "laptop", "--obs", "state", "--recipe", "ppo",
+                                 "--seeds", "0", "1", "--jobs", "2", "--frames", "1000000", "--runs", str(runs),
+                                 "--results", str(tmp_path / "results")], env=env, stderr=err)
+    try:
+        deadline = time.monotonic() + 300  # two spawned workers import torch and build their envs first
+        while not all((runs / f"laptop_state_ppo_s{seed}").exists() for seed in (0, 1)):  # both runs have started
+            assert main.poll() is None and time.monotonic() < deadline, "curriculum_runs did not start its runs"
+            time.sleep(0.2)
+        workers = descendants(main.pid)
+        assert len(workers) >= 2
+        main.send_signal(signal.SIGTERM)
+        assert main.wait(timeout=60) == 130
+        text = stderr.read_text()
+        assert any(line.startswith("curriculum_runs: interrupted") for line in text.splitlines())
+        assert "Traceback" not in text
+        deadline = time.monotonic() + 30
+        while workers & set(living_processes()):
+            assert time.monotonic() < deadline, "worker processes outlived curriculum_runs"
+            time.sleep(0.2)
+        assert not (tmp_path / "results").exists() or not any((tmp_path / "results").glob("*.json"))
+    finally:
+        for pid in workers | descendants(main.pid) | {main.pid}:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass

@@ -15,6 +15,7 @@ from dexart_lite.camera import viewpoint
 from dexart_lite.envs import make
 from dexart_lite.imitation import distill as distill_lib
 from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
+from tests.processes import descendants, living_processes
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 
 from test_imitation import OBJECT, tiny_distill_config
@@ -305,27 +306,6 @@ def test_pretrain_study_prepares_encoders_and_loads_them(tmp_path):
 
 
 
-def _living_processes() -> dict[int, int]:
-    """``{pid: parent pid}`` of every living process (Linux, from /proc/<pid>/stat; a zombie counts as gone)."""
-    parents = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            state, ppid = stat.read_text().rsplit(")", 1)[1].split()[:2]  # after "pid (command)"
-        except OSError:  # the process ended while we looked
-            continue
-        if state != "Z":
-            parents[int(stat.parent.name)] = int(ppid)
-    return parents
-
-
-def _descendants(pid: int) -> set[int]:
-    parents, found, frontier = _living_processes(), set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
-    return found
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process tree from /proc (Linux)")
 def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
     """``kill`` (SIGTERM) on ``study --jobs 2`` ends it as Ctrl-C does, with its one-line message, and its
@@ -350,7 +330,7 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
         while not (tmp_path / "study" / "small" / "seed1").exists():  # both workers have started a run
             assert main.poll() is None and time.monotonic() < deadline, "the study did not start its runs"
             time.sleep(0.2)
-        workers = _descendants(main.pid)
+        workers = descendants(main.pid)
         assert len(workers) >= 2
         main.send_signal(signal.SIGTERM)
         assert main.wait(timeout=60) == 130
@@ -359,11 +339,11 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
         text = stderr.read_text()
         assert "dexart-lite study: interrupted" in text.splitlines() and "Traceback" not in text
         deadline = time.monotonic() + 30
-        while workers & set(_living_processes()):
+        while workers & set(living_processes()):
             assert time.monotonic() < deadline, "worker processes outlived the study"
             time.sleep(0.2)
     finally:
-        for pid in workers | _descendants(main.pid) | {main.pid}:
+        for pid in workers | descendants(main.pid) | {main.pid}:
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:

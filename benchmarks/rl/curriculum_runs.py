@@ -40,8 +40,7 @@ import csv
 import dataclasses
 import json
 import math
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
+import sys
 from pathlib import Path
 
 import torch
@@ -51,7 +50,8 @@ from dexart_lite.objects import list_objects
 from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig
 from dexart_lite.rl import ppo, sac
 from dexart_lite.study import run_arm
-from dexart_lite.utils import benchmark_results, fast_mode, machine_info, provenance, write_json
+from dexart_lite.utils import (benchmark_results, fast_mode, machine_info, process_pool, provenance, sigterm_interrupts,
+                               write_json)
 
 RESULTS = benchmark_results(__file__) / "curriculum"
 # Recipes: the fast preset (4k frames per batch, 5 epochs, lr 3e-4, rewards x 0.01) plus these fields.
@@ -361,7 +361,7 @@ def distil_students(students: list[DistillConfig], path: Path, argv, note: str |
                "per_seed": [], **provenance(__file__, argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
                **({"note": note} if note else {})}
-    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with sigterm_interrupts(), process_pool(jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
         for student, _ in zip(students, pool.map(run_arm, students) if jobs > 1 else map(run_arm, students)):
             add_student(summary, student, path)
     return summary
@@ -483,7 +483,7 @@ def main(argv=None) -> dict:
                **({"note": args.note} if args.note else {})}
     # a continued run's earlier parts may have run on other machines: their records are kept, oldest first
     earlier, this_machine = (json.loads(path.read_text()) if path.exists() else None), summary["machine"]
-    with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
         jobs = list(zip(cfgs, students))
         for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):
             summary["per_seed"].append(row)
@@ -498,4 +498,8 @@ def main(argv=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:  # Ctrl-C or kill: the workers are stopped; what they checkpointed continues
+        print("curriculum_runs: interrupted (the same command continues from the checkpoints)", file=sys.stderr)
+        raise SystemExit(130)

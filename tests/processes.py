@@ -1,0 +1,28 @@
+"""The process tree, read from /proc (Linux): for the tests that stop a launcher and check that no worker
+outlives it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def living_processes() -> dict[int, int]:
+    """``{pid: parent pid}`` of every living process (Linux, from /proc/<pid>/stat; a zombie counts as gone)."""
+    parents = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            state, ppid = stat.read_text().rsplit(")", 1)[1].split()[:2]  # after "pid (command)"
+        except OSError:  # the process ended while we looked
+            continue
+        if state != "Z":
+            parents[int(stat.parent.name)] = int(ppid)
+    return parents
+
+
+def descendants(pid: int) -> set[int]:
+    """The pids of every living process below ``pid`` (children, their children, ...)."""
+    parents, found, frontier = living_processes(), set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found

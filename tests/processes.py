@@ -26,3 +26,25 @@ def descendants(pid: int) -> set[int]:
         frontier = {child for child, parent in parents.items() if parent in frontier} - found
         found |= frontier
     return found
+
+
+def wait_until_gone(pids: set[int], what: str, timeout: float = 30.0) -> None:
+    """Fail unless every process of ``pids`` has ended within ``timeout`` seconds (``what`` names them)."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while pids & set(living_processes()):
+        assert time.monotonic() < deadline, f"{what} outlived their launcher"
+        time.sleep(0.2)
+
+
+def kill_all(pids: set[int]) -> None:
+    """SIGKILL each of ``pids`` that still lives (a test's clean-up, whatever it found)."""
+    import os
+    import signal
+
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

@@ -552,7 +552,7 @@ def test_kill_on_curriculum_runs_stops_its_seeds_and_leaves_no_worker_behind(tmp
     import sys
     import time
 
-    from tests.processes import descendants, living_processes
+    from tests.processes import descendants, kill_all, wait_until_gone
 
     script = Path(__file__).resolve().parent.parent / "benchmarks" / "rl" / "curriculum_runs.py"
     env = {k: v for k, v in os.environ.items() if k != "DEXART_LITE_FAST"}  # fast mode would shrink the runs
@@ -574,14 +574,7 @@ def test_kill_on_curriculum_runs_stops_its_seeds_and_leaves_no_worker_behind(tmp
         text = stderr.read_text()
         assert any(line.startswith("curriculum_runs: interrupted") for line in text.splitlines())
         assert "Traceback" not in text
-        deadline = time.monotonic() + 30
-        while workers & set(living_processes()):
-            assert time.monotonic() < deadline, "worker processes outlived curriculum_runs"
-            time.sleep(0.2)
+        wait_until_gone(workers, "worker processes")
         assert not (tmp_path / "results").exists() or not any((tmp_path / "results").glob("*.json"))
     finally:
-        for pid in workers | descendants(main.pid) | {main.pid}:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        kill_all(workers | descendants(main.pid) | {main.pid})

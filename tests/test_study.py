@@ -15,7 +15,7 @@ from dexart_lite.camera import viewpoint
 from dexart_lite.envs import make
 from dexart_lite.imitation import distill as distill_lib
 from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
-from tests.processes import descendants, living_processes
+from tests.processes import descendants, kill_all, wait_until_gone
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 
 from test_imitation import OBJECT, tiny_distill_config
@@ -338,16 +338,9 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
         # tracker may print its own warning about the killed workers' semaphores after it (seen in about 1 run in 3)
         text = stderr.read_text()
         assert "dexart-lite study: interrupted" in text.splitlines() and "Traceback" not in text
-        deadline = time.monotonic() + 30
-        while workers & set(living_processes()):
-            assert time.monotonic() < deadline, "worker processes outlived the study"
-            time.sleep(0.2)
+        wait_until_gone(workers, "worker processes")
     finally:
-        for pid in workers | descendants(main.pid) | {main.pid}:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        kill_all(workers | descendants(main.pid) | {main.pid})
 
 
 def test_a_ppo_run_short_of_its_frames_continues_and_a_finished_one_is_read_back(tmp_path):

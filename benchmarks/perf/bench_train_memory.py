@@ -22,14 +22,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 
 import numpy as np
 
 from dexart_lite import TASKS
 from dexart_lite.rl import ppo
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, process_pool, provenance, sigterm_interrupts, write_json
 
 
 def arm(job: tuple) -> list[dict]:
@@ -67,7 +65,7 @@ def main(argv: list[str] | None = None) -> dict:
     batches = 2 if fast_mode() else args.batches
     jobs = [(args.task, batches, True), (args.task, batches, False)]
     if args.jobs == 2:
-        with ProcessPoolExecutor(2, mp_context=get_context("spawn")) as pool:  # the two arms side by side
+        with sigterm_interrupts(), process_pool(2) as pool:  # the two arms side by side; a kill stops both
             trim, no_trim = pool.map(arm, jobs)
     else:
         trim, no_trim = map(arm, jobs)

@@ -21,10 +21,8 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import multiprocessing
 import time
 from dataclasses import asdict, replace
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +34,8 @@ from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import network_encoder
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.evaluate import evaluate
-from dexart_lite.utils import benchmark_results, fast_mode, provenance, write_json
+from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sigterm_interrupts,
+                               write_json)
 
 RESULTS = benchmark_results(__file__) / "curriculum"
 ARCHS = {"dexart": {"head": "64,64", "state_hidden": 64}, "wide": {"head": "256,256", "state_hidden": 256}}
@@ -84,7 +83,7 @@ def main(argv=None) -> dict:
     runs = list(itertools.product(args.arch, args.seeds))
     start = time.perf_counter()
     if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
             rows = list(pool.map(clone, *zip(*[(args.task, args.obs, a, s, args) for a, s in runs])))
     else:
         rows = [clone(args.task, args.obs, a, s, args) for a, s in runs]

@@ -31,8 +31,6 @@ per h the success rate and the per-demonstration successes), command, machine; `
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import gymnasium as gym
@@ -42,7 +40,7 @@ import torch
 import dexart_lite
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
 from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
-from dexart_lite.utils import provenance, save_figure, write_json
+from dexart_lite.utils import process_pool, provenance, save_figure, sigterm_interrupts, write_json
 
 
 def parse_policy(text: str) -> tuple[str, str]:
@@ -141,7 +139,7 @@ def main(argv=None) -> dict:
         raise ValueError(f"--h must stay below the demonstrations' first success ({min(l for *_, l in demos)} steps)")
     jobs = [(args.task, label, path, demos, args.h, sigma, args.noise_on)
             for label, path in args.policy for sigma in args.noise]
-    with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
         results = list(pool.map(success_from_h, *zip(*jobs))) if args.jobs > 1 else \
             [success_from_h(*job) for job in jobs]
     result = {"task": args.task, "demos": [list(d) for d in demos], "h": args.h, "noise": args.noise,

@@ -27,8 +27,6 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +34,8 @@ import numpy as np
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.study import run_arm
-from dexart_lite.utils import benchmark_results, fast_mode, provenance, write_json
+from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sigterm_interrupts,
+                               write_json)
 
 RESULTS = benchmark_results(__file__)
 STUDENT = RESULTS / "distill_toilet_episodes2x.json"  # curriculum_runs.STUDENTS["toilet"]
@@ -102,7 +101,7 @@ def main(argv=None) -> dict:
         raise ValueError(f"--prob must be a probability in [0, 1], got {args.prob}")
     cfgs = [student_config(seed, args.runs, 1 if args.jobs > 1 else 0) for seed in args.seeds]
     if args.jobs > 1:  # spawned workers, each with its own wrapped make
-        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
             per_seed = list(pool.map(distil, cfgs, [args.prob] * len(cfgs)))
     else:  # here: the wrap is undone after each seed
         per_seed = [distil(cfg, args.prob) for cfg in cfgs]

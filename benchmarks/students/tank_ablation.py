@@ -28,8 +28,6 @@ dropped, per template; the command and machine.
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +38,8 @@ from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK
 from dexart_lite.rl.evaluate import evaluate as evaluate_policy
 from dexart_lite.rl.evaluate import load_policy
-from dexart_lite.utils import benchmark_results, check_choice, provenance, write_json
+from dexart_lite.utils import (benchmark_results, check_choice, process_pool, provenance, sigterm_interrupts,
+                               write_json)
 
 CONDITIONS = ("intact", "no_tank")
 TANK_MARGIN = 0.002  # m behind the lid's back face; the tank's front is 4 mm behind it (objects/toilet.py)
@@ -123,7 +122,7 @@ def main(argv=None) -> dict:
         if not Path(ckpt).is_file():
             raise FileNotFoundError(f"no checkpoint at {ckpt}")
     work = [(c, args.split, cond, args.episodes, args.seed) for c in args.ckpts for cond in CONDITIONS]
-    with ProcessPoolExecutor(max(1, args.jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
+    with sigterm_interrupts(), process_pool(max(1, args.jobs)) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
         results = list(tqdm(pool.map(evaluate, *zip(*work)), total=len(work), desc="evaluations", unit="eval"))
     print("| checkpoint | condition | dropped | success | max stage | " +
           " | ".join(f"template {t}" for t in results[0]["templates"]) + " |")

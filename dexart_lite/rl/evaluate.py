@@ -28,7 +28,7 @@ from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, observation_kwargs, policy_function
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rollout import per_object_summary, run_episodes
-from dexart_lite.utils import check_choice, resolve_device, write_json
+from dexart_lite.utils import check_choice, process_pool, resolve_device, sigterm_interrupts, write_json
 
 SPLITS = ("seen", "unseen", "seen_half")
 
@@ -154,8 +154,7 @@ def evaluate_many(work: list[tuple[str, str]], episodes_per_object: int, seed: i
     ``seed``, ``jobs`` at a time (success does not depend on timing, so evaluations may run side by side), with a
     progress bar. Each result is cached next to its checkpoint (``heldout_path``) and read back from there by a
     later call, unless the checkpoint is newer than it. Returns {(checkpoint, split): result}."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
 
     from tqdm import tqdm
 
@@ -170,8 +169,8 @@ def evaluate_many(work: list[tuple[str, str]], episodes_per_object: int, seed: i
         for c, s in todo:
             write_json(heldout_path(c, s, episodes_per_object, seed), evaluate_checkpoint(c, s, episodes_per_object, seed))
             bar.update()
-    else:  # spawned workers: pybullet and torch do not survive a fork of a busy parent
-        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+    else:  # spawned workers (pybullet and torch do not survive a fork of a busy parent), stopped with the caller
+        with sigterm_interrupts(), process_pool(jobs) as pool:
             futures = {pool.submit(evaluate_checkpoint, c, s, episodes_per_object, seed): (c, s) for c, s in todo}
             for future in as_completed(futures):
                 write_json(heldout_path(*futures[future], episodes_per_object, seed), future.result())

@@ -297,7 +297,9 @@ def _exit_on_sigterm() -> None:
 def process_pool(workers: int):
     """A ``ProcessPoolExecutor`` of ``workers`` spawned processes that, when the body raises (an error,
     Ctrl-C, SIGTERM), drops the queued calls and terminates the running ones: a stopped launcher leaves no
-    process behind. A terminated worker terminates its own children first (``_exit_on_sigterm``)."""
+    process behind. A terminated worker terminates its own children first (``_exit_on_sigterm``). A launcher
+    wraps it in ``sigterm_interrupts`` for ``kill`` to count; the pool does not, because it also runs inside workers
+    (a viewpoint evaluation), where SIGTERM must end the process, not raise."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 

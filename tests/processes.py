@@ -48,3 +48,31 @@ def kill_all(pids: set[int]) -> None:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+def kill_once_started(command: list[str], started, what: str, stderr: Path, env: dict | None = None,
+                      timeout: float = 300.0) -> int:
+    """Start ``command`` (its stderr to the file ``stderr``: a pipe would be held open by a leftover), wait until
+    ``started(pid)`` holds for its pid (spawned workers import torch first: up to ``timeout`` s), send it SIGTERM as ``kill`` does,
+    and return its exit status once every process that was below it (``what`` names them, at least two) has ended
+    too. Whatever still lives at the end, pass or fail, is killed."""
+    import signal
+    import subprocess
+    import time
+
+    workers: set[int] = set()
+    with stderr.open("w") as err:
+        main = subprocess.Popen(command, env=env, stderr=err)
+    try:
+        deadline = time.monotonic() + timeout
+        while not started(main.pid):
+            assert main.poll() is None and time.monotonic() < deadline, f"the {what} did not start"
+            time.sleep(0.2)
+        workers = descendants(main.pid)
+        assert len(workers) >= 2
+        main.send_signal(signal.SIGTERM)
+        status = main.wait(timeout=60)
+        wait_until_gone(workers, what)
+        return status
+    finally:
+        kill_all(workers | descendants(main.pid) | {main.pid})

@@ -547,34 +547,20 @@ def test_kill_on_curriculum_runs_stops_its_seeds_and_leaves_no_worker_behind(tmp
     130, and its two worker processes, each busy in a PPO run of 1M frames, end with it: a launcher stopped alone
     must not leave seeds training unwatched (their results would never reach the JSON)."""
     import os
-    import signal
-    import subprocess
     import sys
-    import time
 
-    from tests.processes import descendants, kill_all, wait_until_gone
+    from tests.processes import kill_once_started
 
     script = Path(__file__).resolve().parent.parent / "benchmarks" / "rl" / "curriculum_runs.py"
     env = {k: v for k, v in os.environ.items() if k != "DEXART_LITE_FAST"}  # fast mode would shrink the runs
-    runs, stderr = tmp_path / "runs", tmp_path / "stderr.txt"  # a file, not a pipe: a leftover would hold a pipe open
-    workers: set[int] = set()
-    with stderr.open("w") as err:
-        main = subprocess.Popen([sys.executable, str(script), "--task", "laptop", "--obs", "state", "--recipe", "ppo",
-                                 "--seeds", "0", "1", "--jobs", "2", "--frames", "1000000", "--runs", str(runs),
-                                 "--results", str(tmp_path / "results")], env=env, stderr=err)
-    try:
-        deadline = time.monotonic() + 300  # two spawned workers import torch and build their envs first
-        while not all((runs / f"laptop_state_ppo_s{seed}").exists() for seed in (0, 1)):  # both runs have started
-            assert main.poll() is None and time.monotonic() < deadline, "curriculum_runs did not start its runs"
-            time.sleep(0.2)
-        workers = descendants(main.pid)
-        assert len(workers) >= 2
-        main.send_signal(signal.SIGTERM)
-        assert main.wait(timeout=60) == 130
-        text = stderr.read_text()
-        assert any(line.startswith("curriculum_runs: interrupted") for line in text.splitlines())
-        assert "Traceback" not in text
-        wait_until_gone(workers, "worker processes")
-        assert not (tmp_path / "results").exists() or not any((tmp_path / "results").glob("*.json"))
-    finally:
-        kill_all(workers | descendants(main.pid) | {main.pid})
+    runs, stderr = tmp_path / "runs", tmp_path / "stderr.txt"
+    status = kill_once_started(
+        [sys.executable, str(script), "--task", "laptop", "--obs", "state", "--recipe", "ppo", "--seeds", "0", "1",
+         "--jobs", "2", "--frames", "1000000", "--runs", str(runs), "--results", str(tmp_path / "results")],
+        lambda pid: all((runs / f"laptop_state_ppo_s{seed}").exists() for seed in (0, 1)),  # both runs have started
+        "curriculum_runs workers", stderr, env)
+    assert status == 130
+    text = stderr.read_text()
+    assert any(line.startswith("curriculum_runs: interrupted") for line in text.splitlines())
+    assert "Traceback" not in text
+    assert not (tmp_path / "results").exists() or not any((tmp_path / "results").glob("*.json"))

@@ -276,46 +276,32 @@ def test_a_checkpoint_sweep_names_bad_arguments(tmp_path, load_benchmark):
         bench.parse_spec("just_a_path.pt")
 
 
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process tree from /proc (Linux)")
 def test_kill_on_an_evaluate_many_caller_leaves_no_evaluation_worker_behind(tmp_path):
     """``kill`` (SIGTERM) on a process in ``evaluate_many(..., jobs=2)`` (``paired_eval.py``) ends its two spawned
     evaluation workers with it, each busy with 1000 episodes per object, and writes no result: a stopped
     evaluation must not go on unwatched on the machine's cores."""
-    import os
     import shutil
-    import signal
-    import subprocess
     import sys
-    import time
 
-    from tests.processes import descendants, kill_all, wait_until_gone
+    from tests.processes import descendants, kill_once_started
 
     checkpoint = tmp_path / "laptop" / "checkpoint.pt"  # results are cached beside it: a copy keeps the zoo clean
     checkpoint.parent.mkdir()
     shutil.copy(Path(__file__).resolve().parent.parent / "dexart_lite" / "zoo" / "laptop.pt", checkpoint)
     code = ("from dexart_lite.rl.evaluate import evaluate_many; "
             f"evaluate_many([({str(checkpoint)!r}, 'seen'), ({str(checkpoint)!r}, 'unseen')], 1000, 1000, jobs=2)")
-    stderr = tmp_path / "stderr.txt"  # a file, not a pipe: a leftover would hold a pipe open
-    workers: set[int] = set()
-    with stderr.open("w") as err:
-        main = subprocess.Popen([sys.executable, "-c", code], stderr=err, env=os.environ.copy())
-    try:
-        def spawned() -> set[int]:  # the pool's workers (not its resource tracker)
-            found = set()
-            for pid in descendants(main.pid):
-                try:
-                    if b"spawn_main" in Path(f"/proc/{pid}/cmdline").read_bytes():
-                        found.add(pid)
-                except OSError:  # ended while we looked
-                    pass
-            return found
 
-        deadline = time.monotonic() + 120
-        while len(workers := spawned()) < 2:
-            assert main.poll() is None and time.monotonic() < deadline, "evaluate_many did not start its workers"
-            time.sleep(0.2)
-        main.send_signal(signal.SIGTERM)
-        assert main.wait(timeout=60) != 0
-        wait_until_gone(workers, "evaluation workers")
-        assert not list(checkpoint.parent.glob("heldout_*.json"))
-    finally:
-        kill_all(workers | descendants(main.pid) | {main.pid})
+    def both_workers_spawned(pid: int) -> bool:  # the pool's workers, not its resource tracker
+        found = 0
+        for child in descendants(pid):
+            try:
+                found += b"spawn_main" in Path(f"/proc/{child}/cmdline").read_bytes()
+            except OSError:  # ended while we looked
+                pass
+        return found >= 2
+
+    status = kill_once_started([sys.executable, "-c", code], both_workers_spawned, "evaluation workers",
+                               tmp_path / "stderr.txt", timeout=120)
+    assert status != 0
+    assert not list(checkpoint.parent.glob("heldout_*.json"))

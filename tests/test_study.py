@@ -15,7 +15,7 @@ from dexart_lite.camera import viewpoint
 from dexart_lite.envs import make
 from dexart_lite.imitation import distill as distill_lib
 from dexart_lite.models.pointnet import PointNetEncoder, save_encoder
-from tests.processes import descendants, kill_all, wait_until_gone
+from tests.processes import kill_once_started
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 
 from test_imitation import OBJECT, tiny_distill_config
@@ -311,36 +311,22 @@ def test_sigterm_stops_a_parallel_study_and_leaves_no_worker_behind(tmp_path):
     """``kill`` (SIGTERM) on ``study --jobs 2`` ends it as Ctrl-C does, with its one-line message, and its
     worker processes, busy in distillations that would train for hours, end with it."""
     import os
-    import signal
-    import subprocess
     import sys
-    import time
 
     env = {k: v for k, v in os.environ.items() if k != "DEXART_LITE_FAST"}  # fast mode would cap the epochs
     busy = ["objects=" + OBJECT, "num_points=32", "max_episode_steps=6", "demo_episodes_per_object=1", "rounds=1",
             "episodes_per_round=1", "epochs=1000000", "eval_episodes=1"]  # a run that trains for hours
-    stderr = tmp_path / "stderr.txt"  # a file, not a pipe: a worker left behind would hold a pipe open
-    workers: set[int] = set()
-    with stderr.open("w") as err:
-        main = subprocess.Popen([sys.executable, "-m", "dexart_lite.cli", "study", "encoder", "--task", "laptop",
-                                 "--seeds", "2", "--arms", "small", "--jobs", "2", "--no-progress", "--set", *busy,
-                                 "--out", str(tmp_path / "study")], env=env, stderr=err)
-    try:
-        deadline = time.monotonic() + 300  # two spawned workers import torch and collect demos first
-        while not (tmp_path / "study" / "small" / "seed1").exists():  # both workers have started a run
-            assert main.poll() is None and time.monotonic() < deadline, "the study did not start its runs"
-            time.sleep(0.2)
-        workers = descendants(main.pid)
-        assert len(workers) >= 2
-        main.send_signal(signal.SIGTERM)
-        assert main.wait(timeout=60) == 130
-        # the one-line message and no traceback; the line order is not checked: multiprocessing's resource
-        # tracker may print its own warning about the killed workers' semaphores after it (seen in about 1 run in 3)
-        text = stderr.read_text()
-        assert "dexart-lite study: interrupted" in text.splitlines() and "Traceback" not in text
-        wait_until_gone(workers, "worker processes")
-    finally:
-        kill_all(workers | descendants(main.pid) | {main.pid})
+    stderr = tmp_path / "stderr.txt"
+    status = kill_once_started(
+        [sys.executable, "-m", "dexart_lite.cli", "study", "encoder", "--task", "laptop", "--seeds", "2", "--arms",
+         "small", "--jobs", "2", "--no-progress", "--set", *busy, "--out", str(tmp_path / "study")],
+        lambda pid: (tmp_path / "study" / "small" / "seed1").exists(),  # both workers have started a run
+        "study workers", stderr, env)
+    assert status == 130
+    # the one-line message and no traceback; the line order is not checked: multiprocessing's resource
+    # tracker may print its own warning about the killed workers' semaphores after it (seen in about 1 run in 3)
+    text = stderr.read_text()
+    assert "dexart-lite study: interrupted" in text.splitlines() and "Traceback" not in text
 
 
 def test_a_ppo_run_short_of_its_frames_continues_and_a_finished_one_is_read_back(tmp_path):

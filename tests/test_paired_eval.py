@@ -305,3 +305,75 @@ def test_kill_on_an_evaluate_many_caller_leaves_no_evaluation_worker_behind(tmp_
                                tmp_path / "stderr.txt", timeout=120)
     assert status != 0
     assert not list(checkpoint.parent.glob("heldout_*.json"))
+
+
+# ---------------------------------------------------------------- benchmarks/rl/select_checkpoint.py
+def test_the_checkpoint_chosen_on_seen_validation_episodes_is_the_one_evaluated_held_out(tmp_path, monkeypatch,
+                                                                                        load_benchmark):
+    """The choice sees only seen objects at the validation seed; the pick (ties: more frames), the last candidate
+    and the start, and nothing else, get the held-out evaluation on both splits at the held-out seed."""
+    bench = load_benchmark("select_checkpoint")
+    frames = {"a0": 100, "a1": 200, "a2": 300, "b0": 100, "b1": 200, "sa": 0, "sb": 0}
+    validation = {"a0": 0.6, "a1": 0.8, "a2": 0.7, "b0": 0.5, "b1": 0.5}  # s0 picks a1; s1 a tie, b1 the later
+    files = {}
+    for name in frames:
+        files[name] = tmp_path / name / "checkpoint.pt"
+        files[name].parent.mkdir()
+        files[name].write_bytes(b"weights")
+    name_of = {str(path): name for name, path in files.items()}
+    calls = []
+
+    def fake_evaluate_many(work, episodes, seed, jobs=1):
+        calls.append((sorted((name_of[c], s) for c, s in work), episodes, seed))
+        p = (lambda n, s: validation[n]) if seed == 7 else (lambda n, s: 0.9 if s == "seen" else 0.3)
+        return {(c, s): {**fake_eval({"o": p(name_of[c], s)}, episodes), "frames": frames[name_of[c]]}
+                for c, s in work}
+
+    monkeypatch.setattr(bench, "evaluate_many", fake_evaluate_many)
+    out = bench.main(["--start", f"s0={files['sa']}", f"s1={files['sb']}", "--select-seed", "7",
+                      "--select-episodes", "4", "--seed", "1000", "--episodes", "10",
+                      "--json", str(tmp_path / "picked.json"), "--",
+                      *(f"s0={files[n]}" for n in ("a2", "a0", "a1")), *(f"s1={files[n]}" for n in ("b0", "b1"))])
+    (chosen, k, seed), (held, k_held, seed_held) = calls
+    assert chosen == sorted((n, "seen") for n in validation) and (k, seed) == (4, 7)
+    assert set(held) == {(n, s) for n in ("sa", "a1", "a2", "sb", "b1") for s in ("seen", "unseen")}
+    assert (k_held, seed_held) == (10, 1000)
+    s0, s1 = out["series"]["s0"], out["series"]["s1"]
+    assert [c["frames"] for c in s0["candidates"]] == [100, 200, 300]  # sorted by frames, as named or not
+    assert s0["picked"]["checkpoint"] == str(files["a1"]) and s0["last"]["frames"] == 300
+    assert s1["picked"]["frames"] == s1["last"]["frames"] == 200
+    assert s0["picked"]["unseen"]["success"] == 0.3 and s0["start"]["frames"] == 0
+    assert (tmp_path / "picked.png").is_file()
+
+
+def test_a_checkpoint_choice_summarises_picked_last_and_start_over_series(load_benchmark):
+    bench = load_benchmark("select_checkpoint")
+    stats = lambda p, se: {"success": p, "se": se}  # noqa: E731
+    entry = lambda seen, unseen: {"seen": stats(seen, 0.03), "unseen": stats(unseen, 0.04)}  # noqa: E731
+    series = {"s0": {"start": entry(0.6, 0.6), "picked": entry(0.9, 0.7), "last": entry(0.8, 0.7)},
+              "s1": {"start": entry(0.6, 0.5), "picked": entry(0.7, 0.8), "last": entry(0.7, 0.6)}}
+    seen, unseen = (bench.summarise(series)[s] for s in ("seen", "unseen"))
+    assert seen["picked"] == pytest.approx(0.8) and seen["last"] == pytest.approx(0.75)
+    assert seen["picked_minus_start"] == pytest.approx(0.2) and seen["picked_minus_last"] == pytest.approx(0.05)
+    assert unseen["last_minus_start"] == pytest.approx(0.1)
+    # two series of se 0.03: the mean's se is sqrt(2) * 0.03 / 2; a difference of two such means adds in quadrature
+    assert seen["picked_se"] == pytest.approx(math.sqrt(2) * 0.03 / 2)
+    assert seen["picked_minus_start_se"] == pytest.approx(0.03)
+    with pytest.raises(ValueError, match="no candidate"):
+        bench.pick([])
+    tie = [{"frames": 5, "validation": stats(0.5, 0)}, {"frames": 9, "validation": stats(0.5, 0)},
+           {"frames": 7, "validation": stats(0.4, 0)}]
+    assert bench.pick(tie)["frames"] == 9
+
+
+def test_a_checkpoint_choice_names_bad_arguments(tmp_path, load_benchmark):
+    bench = load_benchmark("select_checkpoint")
+    ckpt = tmp_path / "c.pt"
+    ckpt.write_bytes(b"weights")
+    base = ["--json", str(tmp_path / "x.json"), "--start", f"s0={ckpt}", "--", f"s0={ckpt}"]
+    with pytest.raises(ValueError, match="--select-seed must differ from the held-out --seed"):
+        bench.main(["--select-seed", "1000", *base])
+    with pytest.raises(ValueError, match="--select-episodes must be >= 1"):
+        bench.main(["--select-episodes", "0", *base])
+    with pytest.raises(ValueError, match="every series needs one --start.*series s0, s1, starts s0"):
+        bench.main([*base, f"s1={ckpt}"])

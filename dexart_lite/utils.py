@@ -76,6 +76,18 @@ def benchmark_results(script_file: str):
     return path.parents[1] / "results" / path.parent.name
 
 
+def sibling_script(script_file: str, name: str):
+    """The script ``<name>.py`` beside ``script_file`` (a benchmark's ``__file__``) as a module: benchmarks are
+    scripts, not a package, so one that builds on another loads it by path."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(name, Path(script_file).with_name(f"{name}.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def run_in_checkout(root, code: str, *args: str) -> dict:
     """Run Python ``code`` with the ``dexart_lite`` found under ``root`` (a checkout), one thread, in a
     fresh interpreter; return the JSON it prints last. Benchmarks use it to time this checkout and an

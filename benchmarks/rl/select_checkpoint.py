@@ -45,20 +45,9 @@ from pathlib import Path
 import numpy as np
 
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
-from dexart_lite.utils import provenance, save_figure, write_json
+from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
 
 SPLITS = ("seen", "unseen")
-
-
-def load_sweep():
-    """``checkpoint_sweep.py``'s module, for its ``SERIES=CHECKPOINT`` parsing and its git checkouts (the benchmarks
-    are scripts, not a package)."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("checkpoint_sweep", Path(__file__).with_name("checkpoint_sweep.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def pick(candidates: list[dict]) -> dict:
@@ -113,7 +102,7 @@ def plot(series: dict, path: Path) -> Path:
 
 
 def main(argv=None) -> dict:
-    sweep = load_sweep()
+    sweep = sibling_script(__file__, "checkpoint_sweep")  # its SERIES=CHECKPOINT parsing and git checkouts
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoints", nargs="+", type=sweep.parse_spec,
                         help="SERIES=CHECKPOINT candidates (a file or REV:path)")

@@ -38,7 +38,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import dexart_lite  # noqa: E402
 from dexart_lite.rl.ppo import PRESETS, PPOConfig  # noqa: E402
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json  # noqa: E402
+from dexart_lite.utils import (benchmark_results, fast_mode, parse_overrides, provenance, save_figure,  # noqa: E402
+                               sibling_script, write_json)
 
 RESULTS = benchmark_results(__file__)
 # --preset cpu: departures from the cpu preset, as the laptop state-only runs of docs/results/ppo.md (bench_learning
@@ -58,16 +59,6 @@ DEPARTURES["fast_sil"] = (DEPARTURES["fast"] + ", self-imitation of the best 20k
                           "(no replay)")
 DEPARTURES["fast_synergy"] = (DEPARTURES["fast"] + ", a 9-D action: the palm twist and 3 hand synergies, "
                               "robot.synergy_targets (22-D: 16 hand joint targets)")
-
-
-def load_benchmark(name: str):
-    """The module of ``benchmarks/<name>.py`` (the benchmarks are scripts, not a package)."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).parent / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def run_tag(seed: int, preset: str = "cpu") -> str:
@@ -142,7 +133,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--json", type=Path, default=RESULTS / "state_diagnostic.json")
     args = parser.parse_args(argv)
     results = args.json.parent
-    bench = load_benchmark("bench_learning")
+    bench = sibling_script(__file__, "bench_learning")
     start, tasks = time.perf_counter(), {}
     for task in args.tasks:
         runs = []

@@ -25,7 +25,6 @@ per template, wall time, frames; the means; command, machine.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 from pathlib import Path
 
@@ -34,19 +33,11 @@ import numpy as np
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.study import run_arm
-from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sigterm_interrupts,
-                               write_json)
+from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sibling_script,
+                               sigterm_interrupts, write_json)
 
 RESULTS = benchmark_results(__file__)
 STUDENT = RESULTS / "distill_toilet_episodes2x.json"  # curriculum_runs.STUDENTS["toilet"]
-
-
-def sibling(name: str):
-    """The sibling script ``<name>.py`` as a module (benchmarks are scripts, not a package)."""
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def student_config(seed: int, runs: Path, threads: int) -> DistillConfig:
@@ -65,7 +56,7 @@ def distil(cfg: DistillConfig, prob: float) -> dict:
     import dexart_lite.envs as envs
     import dexart_lite.rl.evaluate as evaluate
 
-    original, erase_tank = envs.make, sibling("tank_ablation").erase_tank
+    original, erase_tank = envs.make, sibling_script(__file__, "tank_ablation").erase_tank
     if evaluate.make_gym_env is not original:
         raise RuntimeError("rl.evaluate must build its envs with the unwrapped make")
     built = [0]
@@ -81,7 +72,7 @@ def distil(cfg: DistillConfig, prob: float) -> dict:
         result = run_arm(cfg)
     finally:
         envs.make = original
-    rows = sibling("success_by_template").by_template([Path(cfg.out)])["rows"]  # from its own evaluations
+    rows = sibling_script(__file__, "success_by_template").by_template([Path(cfg.out)])["rows"]  # from its own evaluations
     per_template = {f"{r['split']}_{r['template']}": r["success"] for r in rows if r["template"] != "all"}
     return {"seed": cfg.seed, "run": cfg.out, "seen_success": result["seen_success"],
             "unseen_success": result["unseen_success"], "per_template": per_template,

@@ -68,3 +68,25 @@ def test_every_relative_link_in_the_docs_resolves():
             if not (path.parent / target.split("#")[0]).exists():
                 broken.append(f"{name}: {target}")
     assert broken == []
+
+
+def test_the_targets_table_marks_each_split_against_its_target(tmp_path, monkeypatch):
+    """The targets table checks a run set's held-out success against DexArt's Table 2 and against its students +
+    0.10, split by split, unrounded but for floating point (11/110 meets 0.00 + 0.10)."""
+    import json
+
+    tables = load()
+    assert tables.verdict((0.1, 0.79), (0.0 + 0.1, 0.88)) == "0.10 / 0.88: met / missed"
+    paired = tmp_path / "paired.json"
+    entry = {"task": "laptop", "recipe": "student_anchored_release_flat", "seeds": [0, 1], "rl_frames": [756000, 760000],
+             "seen": {"student": 0.62, "rl": 0.83}, "unseen": {"student": 0.70, "rl": 0.76}}
+    paired.write_text(json.dumps({"summary": [entry], "episodes_per_object": 10}))
+    monkeypatch.setattr(tables, "PAIRED", paired)
+    monkeypatch.setattr(tables, "HEADLINE", {"laptop": tables.HEADLINE["laptop"]})
+    row = tables.targets_table().splitlines()[-1]
+    assert "0.83 / 0.76 (`student_anchored_release_flat`, 756k / 760k)" in row
+    assert "0.81 / 0.41: met / met" in row  # DexArt's laptop
+    assert "0.72 / 0.80: met / missed" in row  # 0.76 < 0.70 + 0.10
+    entry["rl_frames"] = [2_100_000, 760000]  # past the 2M budget: not among the best within it
+    paired.write_text(json.dumps({"summary": [entry], "episodes_per_object": 10}))
+    assert tables.targets_table().splitlines()[-1].split(" | ")[-2] == "-"

@@ -82,7 +82,8 @@ def test_the_targets_table_marks_each_split_against_its_target(tmp_path, monkeyp
              "seen": {"student": 0.62, "rl": 0.83}, "unseen": {"student": 0.70, "rl": 0.76}}
     paired.write_text(json.dumps({"summary": [entry], "episodes_per_object": 10}))
     monkeypatch.setattr(tables, "PAIRED", paired)
-    monkeypatch.setattr(tables, "HEADLINE", {"laptop": tables.HEADLINE["laptop"]})
+    headline = {**tables.HEADLINE["laptop"], "rl": "laptop_cloud_student_anchored_release_flat.json"}
+    monkeypatch.setattr(tables, "HEADLINE", {"laptop": headline})
     row = tables.targets_table().splitlines()[-1]
     assert "0.83 / 0.76 (`student_anchored_release_flat`, 756k / 760k)" in row
     assert "0.81 / 0.41: met / met" in row  # DexArt's laptop

@@ -141,18 +141,27 @@ def rl_cell(name: str | None) -> str:
             f"(`{rl['recipe']}`, {rl['frames'] / 1000:.0f}k frames, {len(rl['per_seed'])} seeds)")
 
 
+def paired_summary() -> list[dict]:
+    """The run sets' held-out re-evaluations (``paired_eval.json``'s ``summary``; empty before it is measured)."""
+    return load(PAIRED)["summary"] if PAIRED.exists() else []
+
+
+def paired_entry(rl: dict | None) -> dict | None:
+    """The held-out re-evaluation of a run set (its JSON ``rl``), or None where there is none."""
+    return next((e for e in paired_summary() if rl and (e["task"], e["recipe"]) == (rl["task"], rl["recipe"])), None)
+
+
 def cloud_rl_cell(name: str | None) -> str:
     """The point-cloud RL cell: its paired re-evaluation beside the students it started from where there is one
     (``paired_eval.json``, more episodes per object than the run's own evaluation), else ``rl_cell``."""
     rl = load(RESULTS / "rl" / "curriculum" / name) if name else None
-    paired = load(PAIRED) if PAIRED.exists() else {"summary": []}
-    entry = next((e for e in paired["summary"] if rl and (e["task"], e["recipe"]) == (rl["task"], rl["recipe"])), None)
+    entry = paired_entry(rl)
     if entry is None:
         return rl_cell(name)
     frames = np.mean(entry["rl_frames"])
     return (f"[{entry['seen']['rl']:.2f} / {entry['unseen']['rl']:.2f}](benchmarks/results/rl/paired_eval.json) "
             f"from students at {entry['seen']['student']:.2f} / {entry['unseen']['student']:.2f} (`{rl['recipe']}`, "
-            f"{frames / 1000:.0f}k frames, {len(entry['seeds'])} seeds, {paired['episodes_per_object']} eps per object)")
+            f"{frames / 1000:.0f}k frames, {len(entry['seeds'])} seeds, {load(PAIRED)['episodes_per_object']} eps per object)")
 
 
 def headline_table() -> str:
@@ -186,13 +195,13 @@ def targets_table() -> str:
     Table 2 and the students it started from + 0.10 (both on the same held-out resets), and the README's student
     cell + 0.10 (its own evaluation, 3 episodes per object); the best held-out success of any run set of the task
     within the frame budget; on the state observation >= 0.8 seen success within 1M frames."""
-    paired = load(PAIRED)["summary"] if PAIRED.exists() else []
+    paired = paired_summary()
     rows = ["| task | RL on point clouds, held out (run set, frames / seed) | DexArt Table 2 | its students + 0.10 "
             "(same resets) | the README's student cell + 0.10 | best of any run set within 2M frames | "
             "RL on the state: seen >= 0.8 within 1M frames |", "|---|---|---|---|---|---|---|"]
     for task, cells in HEADLINE.items():
         rl = load(RESULTS / "rl" / "curriculum" / cells["rl"]) if cells["rl"] else None
-        entry = next((e for e in paired if rl and (e["task"], e["recipe"]) == (task, rl["recipe"])), None)
+        entry = paired_entry(rl)
         student = load(RESULTS / cells["student"])
         readme_student = (student["seen_success"] + TARGET_MARGIN, student["unseen_success"] + TARGET_MARGIN)
         within = [e for e in paired if e["task"] == task and max(e["rl_frames"]) <= FRAME_BUDGET]

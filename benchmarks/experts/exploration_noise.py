@@ -43,6 +43,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(SIGMAS), help="noise std per action dim")
     parser.add_argument("--seeds", "--seed", dest="seeds", type=int, nargs="+", default=[0],
                         help="one solve per seed (its own reset seeds and noise draws); the table adds their mean")
+    parser.add_argument("--expert", help="another expert's class name than the task's own (dexart_lite.experts.EXPERTS)")
     parser.add_argument("--json", type=Path, help="write the results here (and the PNG next to it)")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -55,7 +56,7 @@ def main(argv=None) -> dict:
             for seed in args.seeds:
                 start = time.perf_counter()
                 res = solve(args.task, split, args.episodes_per_object, seed, object_names=object_names,
-                            progress=not fast_mode(), action_noise=sigma)
+                            progress=not fast_mode(), action_noise=sigma, expert=args.expert)
                 res["wall_time_s"] = time.perf_counter() - start
                 rows.append(res)
     summary = mean_over_seeds(rows)
@@ -72,12 +73,12 @@ def main(argv=None) -> dict:
         for r in summary:
             print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- "
                   f"{r['success_std']:.2f} | {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
-    result = {"task": args.task, "splits": args.splits, "episodes_per_object": args.episodes_per_object,
+    result = {"task": args.task, "expert": rows[0]["expert"], "splits": args.splits, "episodes_per_object": args.episodes_per_object,
               "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary,
               **provenance(__file__, argv)}
     if args.json:
         write_json(args.json, result)
-        plot(summary, args.json.with_suffix(".png"), f"{args.task}: scripted solver + Gaussian action noise")
+        plot(summary, args.json.with_suffix(".png"), f"{args.task} ({rows[0]['expert']}) + Gaussian action noise")
         print(f"wrote {args.json} and {args.json.with_suffix('.png')}")
     return result
 

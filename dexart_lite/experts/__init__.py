@@ -24,7 +24,7 @@ import numpy as np
 
 from dexart_lite.experts.base import PartFrame, Solver
 from dexart_lite.registration import PRIVILEGED_DIM
-from dexart_lite.experts.bucket import BucketSolver
+from dexart_lite.experts.bucket import BucketSolver, OverhandBucketSolver
 from dexart_lite.experts.faucet import FaucetSolver
 from dexart_lite.experts.laptop import FeedbackLidSolver
 from dexart_lite.registration import SPECS
@@ -35,20 +35,26 @@ from dexart_lite.utils import check_choice
 # LidSolver it builds on opened every toilet (1.00 / 1.00) but its students failed (0.08 / 0.03, 3 seeds):
 # its decisions hinge on counters no observation shows and its side of approach flips with the placement.
 # Each task's expert is named in its spec (registration.SPECS).
-SOLVERS = {task: {c.__name__: c for c in (BucketSolver, FaucetSolver, FeedbackLidSolver)}[spec.expert]
-           for task, spec in SPECS.items()}
+# Every expert by class name; a task's own is the one its spec names, the others are candidates that can be
+# measured beside it (``solve(expert=...)``, ``benchmarks/experts/exploration_noise.py --expert``).
+EXPERTS = {c.__name__: c for c in (BucketSolver, OverhandBucketSolver, FaucetSolver, FeedbackLidSolver)}
+SOLVERS = {task: EXPERTS[spec.expert] for task, spec in SPECS.items()}
 
 
 class ScriptedPolicy:
     """observation -> action for a DexArt-lite env, using the env's privileged state.
 
+    ``expert``: the class name of another expert than the task's own (``EXPERTS``).
     A new solver starts with every episode (step 0, or another object or pose than the last call's).
     ``privileged`` holds ``Solver.privileged`` of the state the last action answered.
     """
 
-    def __init__(self, env):
+    def __init__(self, env, expert: str | None = None):
         self.env = env.unwrapped
         check_choice("task with a scripted solver", self.env.CATEGORY, SOLVERS)
+        if expert is not None:
+            check_choice("expert", expert, EXPERTS)
+        self.expert = SOLVERS[self.env.CATEGORY] if expert is None else EXPERTS[expert]  # the Solver class
         self.solver: Solver | None = None
         self._episode = None
         self.privileged: np.ndarray | None = None
@@ -57,7 +63,7 @@ class ScriptedPolicy:
         env, state = self.env, self.env.state
         key = (id(state.obj), state.base_pos_at_reset.tobytes())
         if state.t == 0 or self.solver is None or key != self._episode:
-            self.solver, self._episode = SOLVERS[env.CATEGORY](env), key
+            self.solver, self._episode = self.expert(env), key
         self.privileged = self.solver.privileged(state)  # of the state this action answers
         return np.clip(self.solver.act(state), -1.0, 1.0)
 
@@ -72,5 +78,5 @@ class SynergyScriptedPolicy(ScriptedPolicy):
         return np.concatenate([a[:6], synergy_action(self.env.robot.hand_targets(a[6:]))])  # (9,)
 
 
-__all__ = ["SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "FaucetSolver", "FeedbackLidSolver", "PartFrame",
+__all__ = ["EXPERTS", "SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver", "FaucetSolver", "FeedbackLidSolver", "PartFrame",
            "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]

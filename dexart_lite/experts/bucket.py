@@ -1,12 +1,13 @@
-"""The bucket expert."""
+"""The bucket experts: ``BucketSolver`` (fingertip hook) and ``OverhandBucketSolver`` (overhand cage)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from dexart_lite.experts.base import Solver
-from dexart_lite.experts.controller import hand_shape
+from dexart_lite.experts.controller import PalmController, hand_shape
 from dexart_lite.experts.geometry import TUCKED_THUMB, Pose, finger_tip, hand_frame, thumb_reaching
+from dexart_lite.pointcloud import quat_to_matrix
 
 
 class BucketSolver(Solver):
@@ -73,6 +74,12 @@ class BucketSolver(Solver):
         self.thumb = thumb_reaching((self.c, self.THUMB_Y, self.FIST_Z - rho - 0.012 + self.THUMB_SQUEEZE))
         self.hand_now: np.ndarray | None = None
 
+    def hand_rotation(self, alpha: float) -> np.ndarray:
+        """Palm orientation (3, 3): fingers toward the robot, ``alpha`` rad below the horizontal."""
+        up = self.frame.pose(0.0).R  # the bail's frame upright: x away from the robot, z up
+        return hand_frame(normal=up @ np.array([np.sin(alpha), 0.0, -np.cos(alpha)]),
+                          fingers=up @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)]))
+
     def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
         """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
         hand = np.asarray(hand, float)
@@ -84,9 +91,11 @@ class BucketSolver(Solver):
         """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
         return self.frame.pose(q).apply(self.apex_local)
 
-    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0) -> Pose:
-        """Palm pose with the tube centre ``tube`` (world) at (x_h, 0, z_h) in the palm frame."""
-        return Pose(np.asarray(tube) - self.R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), self.R)
+    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0, R: np.ndarray | None = None) -> Pose:
+        """Palm pose (orientation ``R``, default the grasp's) with the tube centre ``tube`` (world) at
+        (x_h, 0, z_h) in the palm frame."""
+        R = self.R if R is None else R
+        return Pose(np.asarray(tube) - R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), R)
 
     def shape(self, finger=(0.0, 0.0, 0.0), thumb=TUCKED_THUMB) -> np.ndarray:
         return hand_shape(finger=(0.0, *finger), thumb=thumb)
@@ -135,4 +144,134 @@ class BucketSolver(Solver):
             return a
         up = min(self.phase_steps * self.LIFT_RATE, self.LIFT)
         a, _, _ = self.action(s, self.palm_at(self.tube_ref, self.c, self.FIST_Z, up=up), fist, speed=0.5)
+        return a
+
+
+class OverhandBucketSolver(Solver):
+    """Bucket, overhand: come down on the lying tube from above, curl the fingers round its robot side
+    and under it, carry it up its circle in the closed hand, close the knuckles under it and lift.
+
+    Hand: palm down, fingers pointing toward the robot and tilted ``ALPHA`` below the horizontal (the
+    palm's wrist end rises over the rim); the back of the hand is on the flange, so the arm stays above
+    the hand at every bucket height (a palm-up scoop needs the flange below the palm, out of reach
+    under ~0.17 m). Coordinates "in the palm frame": x_h down (palmar), z_h along the fingers (toward
+    the robot).
+
+    Why this grasp (``BucketSolver`` hooks the fingertips under the tube and carries the bail up on
+    them; under exploration noise the 3-15 g bail leaves the tips and topples over the top): here the
+    closing fingers themselves scoop the tube up off the wall and press it into the crease under the
+    knuckles, so from the first raise the tube is held on three sides (palm above, fingers on the robot
+    side and below), and the bail's own weight leans it into the fingers while it is short of upright.
+    The raise stops at ``QTOP`` (success needs |q| < 0.47 rad): the lift itself swings the bail upright.
+
+    Closed loop: every step reads where the tube is in the palm frame. A close that did not cage the
+    tube, a raise or lift that lost it, or a descent that does not arrive, goes back to the approach
+    above wherever the tube now is (a fresh grasp); no step counter decides a success.
+
+    1. approach: open hand 5 cm above the grasp pose of the tube as it is now.
+    2. descend: onto the tube, fingers straight, until the tube is within ``TOL`` of (XC, ZC).
+    3. close: curl to ``SQUEEZE``; the fingertips lift the tube into the crease (caged, or regrasp).
+    4. raise: carry the tube up its circle to ``QTOP``, the tube kept at (XG, ZG) in the palm.
+    5. lift: the knuckles close under the tube (``CARRY``), then straight up ``LIFT``.
+    """
+
+    RATE = 0.15  # rad per control step: largest change of a hand joint target
+    GAIN = 10.0  # 1/s: palm position gain (the base controller's 6 lets noise drift the palm further)
+    ALPHA = 0.35  # rad: fingers below the horizontal
+    OPEN = (0.0, 0.0, 0.0)  # MCP, PIP, DIP while coming down
+    SQUEEZE = (0.2, 1.6, 1.4)  # the cage: medial on the robot side of the tube, distal under it
+    CARRY = (1.2, 1.2, 1.0)  # the knuckles closed under the crease for the lift
+    XC, ZC = 0.03, 0.05  # m: tube centre in the palm frame where the fingers close
+    XG, ZG = 0.02, 0.02  # m: where the closing fingers press it (the crease under the knuckles)
+    HELD = ((-0.005, 0.085), (-0.06, 0.06), (-0.03, 0.075))  # m: x_h, y_h, z_h box of a tube in the hand
+    TOL = 0.012  # m: descent arrived
+    LEAD = 0.3  # rad: while raising, follow the tube turned this much further
+    QTOP = -0.5  # rad: end of the raise, bail still leaning on the fingers
+    CARRY_STEPS = 10  # control steps to close the knuckles before lifting
+    ALPHA_LIFT = None
+    TURN_RATE = 0.04
+    LIFT, LIFT_RATE = 0.36, 0.007  # m, m per control step (success needs 0.25 m of body lift)
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.palm = PalmController(gain=self.GAIN)
+        self.apex_local = np.asarray(env.objects.active.grasp_point, float)
+        self.R = self.hand_rotation(self.ALPHA)
+        self.hand_now: np.ndarray | None = None
+        self.top: np.ndarray | None = None
+
+    def hand_rotation(self, alpha: float) -> np.ndarray:
+        """Palm orientation (3, 3): fingers toward the robot, ``alpha`` rad below the horizontal."""
+        up = self.frame.pose(0.0).R  # the bail's frame upright: x away from the robot, z up
+        return hand_frame(normal=up @ np.array([np.sin(alpha), 0.0, -np.cos(alpha)]),
+                          fingers=up @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)]))
+
+    def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
+        """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
+        hand = np.asarray(hand, float)
+        self.hand_now = hand.copy() if self.hand_now is None else self.hand_now + np.clip(
+            hand - self.hand_now, -self.RATE, self.RATE)
+        return super().action(state, target, self.hand_now, speed)
+
+    def apex(self, q: float | None = None) -> np.ndarray:
+        """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
+        return self.frame.pose(q).apply(self.apex_local)
+
+    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0, R: np.ndarray | None = None) -> Pose:
+        """Palm pose (orientation ``R``, default the grasp's) with the tube centre ``tube`` (world) at
+        (x_h, 0, z_h) in the palm frame."""
+        R = self.R if R is None else R
+        return Pose(np.asarray(tube) - R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), R)
+
+    def tube_in_palm(self, s) -> np.ndarray:
+        """The tube centre now, (3,) m in the palm frame."""
+        return quat_to_matrix(s.robot.palm_quat).T @ (self.apex() - s.robot.palm_pos)
+
+    def held(self, s) -> bool:
+        return all(lo < v < hi for v, (lo, hi) in zip(self.tube_in_palm(s), self.HELD))
+
+    @staticmethod
+    def shape(finger) -> np.ndarray:
+        return hand_shape(finger=(0.0, *finger))  # the thumb stays out: closing it pushed the tube away
+
+    def step(self, s) -> np.ndarray:
+        tube = self.apex()
+        if self.phase == "approach":
+            a, err, err_r = self.action(s, self.palm_at(tube, self.XC + 0.05, self.ZC), self.shape(self.OPEN))
+            if err < 0.02 and err_r < 0.15:
+                self.goto("descend")
+            return a
+        if self.phase == "descend":
+            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.OPEN), speed=0.5)
+            t = self.tube_in_palm(s)
+            if np.hypot(t[0] - self.XC, t[2] - self.ZC) < self.TOL and abs(t[1]) < 0.03:
+                self.goto("close")
+            elif self.phase_steps > 40:
+                self.goto("approach")
+            return a
+        if self.phase == "close":
+            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.SQUEEZE), speed=0.5)
+            if self.phase_steps > 16:
+                self.goto("raise" if self.held(s) else "approach")
+            return a
+        if self.phase == "raise":
+            if not self.held(s):
+                self.goto("approach")
+            goal = self.palm_at(self.apex(min(s.q + self.LEAD, self.QTOP)), self.XG, self.ZG)
+            a, err, _ = self.action(s, goal, self.shape(self.SQUEEZE), speed=0.5)
+            if s.q > self.QTOP - 0.05 and err < 0.025:
+                self.goto("lift")
+                self.top = self.apex(self.QTOP)
+            return a
+        if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
+            self.goto("approach")
+        if self.ALPHA_LIFT is not None:
+            alpha = min(self.ALPHA + self.phase_steps * self.TURN_RATE, self.ALPHA_LIFT)
+            turned = max(self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS, 0)
+            up = min(turned * self.LIFT_RATE, self.LIFT)
+            goal = self.palm_at(self.top, self.XG, self.ZG, up=up, R=self.hand_rotation(alpha))
+            a, _, _ = self.action(s, goal, self.shape(self.SQUEEZE if self.CARRY is None else self.CARRY), speed=1.0)
+            return a
+        up = min(max(self.phase_steps - self.CARRY_STEPS, 0) * self.LIFT_RATE, self.LIFT)
+        a, _, _ = self.action(s, self.palm_at(self.top, self.XG, self.ZG, up=up), self.shape(self.CARRY), speed=0.5)
         return a

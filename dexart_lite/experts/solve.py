@@ -26,7 +26,8 @@ def solve_episodes(names: list[str], episodes_per_object: int, seed: int) -> lis
 
 
 def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: int = 0, object_names=None,
-          progress: bool = True, action_noise: float = 0.0, env_kwargs: dict | None = None) -> dict:
+          progress: bool = True, action_noise: float = 0.0, env_kwargs: dict | None = None,
+          expert: str | None = None) -> dict:
     """Run the expert over every object of a split; success counts if reached at any step.
 
     Episode ``k`` of object ``i`` is reset with seed ``seed + 1000 k + i``. ``action_noise``: std of
@@ -34,6 +35,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     actions (``benchmarks/experts/exploration_noise.py``); drawn from an RNG seeded with ``seed``, separate
     from the env's. ``env_kwargs``: further keywords of the env (e.g. ``solver_iterations``, for
     ``benchmarks/perf/bench_physics.py``; ``hand="synergy"``: the expert's hand projected on the synergies).
+    ``expert``: another expert's class name than the task's own (``dexart_lite.experts.EXPERTS``).
     """
     from dexart_lite.envs import make
 
@@ -41,14 +43,15 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
         raise ValueError(f"action_noise must be a finite std >= 0, got {action_noise}")
     env = make(task, split=split, object_names=object_names, **{"num_points": 32, **(env_kwargs or {})})
     names = env.unwrapped.objects.names
-    expert = SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy
-    policy = noisy(expert(env), action_noise, np.random.default_rng(seed))
+    expert_cls = SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy
+    policy = noisy(expert_cls(env, expert), action_noise, np.random.default_rng(seed))
     episodes = solve_episodes(names, episodes_per_object, seed)
     results = run_episodes(policy, env, episodes, progress=progress, desc=f"solve {task}/{split}")
     env.close()
     rates = {n: float(np.mean([e["success"] for e in results if e["object"] == n])) for n in names}
     stage_steps = np.bincount(np.concatenate([e["stages"] for e in results]) - 1, minlength=3)  # steps in stage 1..3
     return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
+            "expert": policy.policy.expert.__name__,
             "action_noise": action_noise,
             "success_rate": float(np.mean([e["success"] for e in results])),
             "success_per_object": rates, "mean_max_stage": float(np.mean([e["max_stage"] for e in results])),

@@ -186,9 +186,12 @@ class OverhandBucketSolver(Solver):
     HELD = ((-0.005, 0.085), (-0.06, 0.06), (-0.03, 0.075))  # m: x_h, y_h, z_h box of a tube in the hand
     TOL = 0.012  # m: descent arrived
     LEAD = 0.3  # rad: while raising, follow the tube turned this much further
+    RAISE_SPEED = 0.5  # of the palm controller's speed caps
     QTOP = -0.5  # rad: end of the raise, bail still leaning on the fingers
     CARRY_STEPS = 10  # control steps to close the knuckles before lifting
     ALPHA_LIFT = None
+    CARRY_WHERE_HELD = False
+    CARRY_BOX = ((0.015, -1, 0.015), (0.035, 1, 0.05))
     TURN_RATE = 0.04
     LIFT, LIFT_RATE = 0.36, 0.007  # m, m per control step (success needs 0.25 m of body lift)
 
@@ -257,11 +260,14 @@ class OverhandBucketSolver(Solver):
         if self.phase == "raise":
             if not self.held(s):
                 self.goto("approach")
-            goal = self.palm_at(self.apex(min(s.q + self.LEAD, self.QTOP)), self.XG, self.ZG)
-            a, err, _ = self.action(s, goal, self.shape(self.SQUEEZE), speed=0.5)
+            t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX) if self.CARRY_WHERE_HELD else (self.XG, 0.0, self.ZG)
+            goal = self.palm_at(self.apex(min(s.q + self.LEAD, self.QTOP)), t[0], t[2])
+            a, err, _ = self.action(s, goal, self.shape(self.SQUEEZE), speed=self.RAISE_SPEED)
             if s.q > self.QTOP - 0.05 and err < 0.025:
                 self.goto("lift")
                 self.top = self.apex(self.QTOP)
+                if self.CARRY_WHERE_HELD:
+                    self.hold = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)
             return a
         if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
             self.goto("approach")
@@ -269,7 +275,8 @@ class OverhandBucketSolver(Solver):
             alpha = min(self.ALPHA + self.phase_steps * self.TURN_RATE, self.ALPHA_LIFT)
             turned = max(self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS, 0)
             up = min(turned * self.LIFT_RATE, self.LIFT)
-            goal = self.palm_at(self.top, self.XG, self.ZG, up=up, R=self.hand_rotation(alpha))
+            xg, zg = (self.hold[0], self.hold[2]) if self.CARRY_WHERE_HELD else (self.XG, self.ZG)
+            goal = self.palm_at(self.top, xg, zg, up=up, R=self.hand_rotation(alpha))
             a, _, _ = self.action(s, goal, self.shape(self.SQUEEZE if self.CARRY is None else self.CARRY), speed=1.0)
             return a
         up = min(max(self.phase_steps - self.CARRY_STEPS, 0) * self.LIFT_RATE, self.LIFT)

@@ -148,66 +148,67 @@ class BucketSolver(Solver):
 
 
 class OverhandBucketSolver(Solver):
-    """Bucket, overhand: come down on the lying tube from above, curl the fingers round its robot side
-    and under it, carry it up its circle in the closed hand, close the knuckles under it and lift.
+    """Bucket, overhand: come down on the lying tube from above, curl the fingers round its outer side and
+    under it, carry it up its circle in the closed hand, turn the hand under it, close the knuckles and lift.
 
-    Hand: palm down, fingers pointing toward the robot and tilted ``ALPHA`` below the horizontal (the
-    palm's wrist end rises over the rim); the back of the hand is on the flange, so the arm stays above
-    the hand at every bucket height (a palm-up scoop needs the flange below the palm, out of reach
-    under ~0.17 m). Coordinates "in the palm frame": x_h down (palmar), z_h along the fingers (toward
-    the robot).
+    Hand: palm down, fingers pointing away from the bucket's axis over the tube's outer side (toward the
+    robot for a bail lying on the robot's side), tilted ``ALPHA`` below the horizontal so that the palm's
+    wrist end rises over the rim. The back of the hand is on the flange, so the arm stays above the hand
+    at every bucket height (a palm-up scoop needs the flange below the palm: out of reach under ~0.17 m).
+    Coordinates "in the palm frame": x_h palmar (down), z_h along the fingers.
 
-    Why this grasp (``BucketSolver`` hooks the fingertips under the tube and carries the bail up on
-    them; under exploration noise the 3-15 g bail leaves the tips and topples over the top): here the
-    closing fingers themselves scoop the tube up off the wall and press it into the crease under the
-    knuckles, so from the first raise the tube is held on three sides (palm above, fingers on the robot
-    side and below), and the bail's own weight leans it into the fingers while it is short of upright.
-    The raise stops at ``QTOP`` (success needs |q| < 0.47 rad): the lift itself swings the bail upright.
+    Why this grasp (``BucketSolver`` hooks the fingertips under the tube and carries the bail up on them;
+    under exploration noise the 3-15 g bail leaves the tips and topples over the top): the closing fingers
+    themselves scoop the tube up off the wall and press it into the crease under the knuckles, so from
+    the first raise the tube is held on three sides (palm above, fingers on its outer side and below) and
+    the bail's weight leans it into the fingers while it is short of upright. The raise stops at
+    ``QTOP`` from upright (success needs |q| < 0.47 rad); the lift swings the bail upright by itself.
 
-    Closed loop: every step reads where the tube is in the palm frame. A close that did not cage the
-    tube, a raise or lift that lost it, or a descent that does not arrive, goes back to the approach
-    above wherever the tube now is (a fresh grasp); no step counter decides a success.
+    Closed loop: every step reads where the tube is in the palm frame and which side the bail lies on.
+    A close that did not cage the tube, a raise or a lift that lost it, or a descent that does not
+    arrive goes back to the approach above wherever the tube now is, on whichever side (a bail flung
+    over the top is taken from the far side, the grasp mirrored); no step counter decides a success.
 
     1. approach: open hand 5 cm above the grasp pose of the tube as it is now.
     2. descend: onto the tube, fingers straight, until the tube is within ``TOL`` of (XC, ZC).
     3. close: curl to ``SQUEEZE``; the fingertips lift the tube into the crease (caged, or regrasp).
-    4. raise: carry the tube up its circle to ``QTOP``, the tube kept at (XG, ZG) in the palm.
-    5. lift: the knuckles close under the tube (``CARRY``), then straight up ``LIFT``.
+    4. raise: carry the tube up its circle to ``QTOP``, the tube kept where it sits in the hand.
+    5. lift: turn the hand under the tube to ``ALPHA_LIFT`` (fingers nearly down: the hand's opening
+       faces up, the bucket's weight pulls the tube into the curled fingers), close the knuckles
+       (``CARRY``), then straight up ``LIFT``.
     """
 
     RATE = 0.15  # rad per control step: largest change of a hand joint target
     GAIN = 10.0  # 1/s: palm position gain (the base controller's 6 lets noise drift the palm further)
-    ALPHA = 0.35  # rad: fingers below the horizontal
+    ALPHA, ALPHA_LIFT = 0.35, 1.3  # rad: fingers below the horizontal while grasping, and for the lift
+    TURN_RATE = 0.04  # rad per control step while turning the hand for the lift
     OPEN = (0.0, 0.0, 0.0)  # MCP, PIP, DIP while coming down
-    SQUEEZE = (0.2, 1.6, 1.4)  # the cage: medial on the robot side of the tube, distal under it
+    SQUEEZE = (0.2, 1.6, 1.4)  # the cage: medial on the tube's outer side, distal under it
     CARRY = (1.2, 1.2, 1.0)  # the knuckles closed under the crease for the lift
     XC, ZC = 0.03, 0.05  # m: tube centre in the palm frame where the fingers close
-    XG, ZG = 0.02, 0.02  # m: where the closing fingers press it (the crease under the knuckles)
     HELD = ((-0.005, 0.085), (-0.06, 0.06), (-0.03, 0.075))  # m: x_h, y_h, z_h box of a tube in the hand
+    CARRY_BOX = ((0.015, 0.0, 0.015), (0.035, 0.0, 0.05))  # m: where the hand keeps a held tube (the crease)
     TOL = 0.012  # m: descent arrived
     LEAD = 0.3  # rad: while raising, follow the tube turned this much further
-    RAISE_SPEED = 0.5  # of the palm controller's speed caps
-    QTOP = -0.5  # rad: end of the raise, bail still leaning on the fingers
+    QTOP = 0.5  # rad from upright: end of the raise, the bail still leaning on the fingers
     CARRY_STEPS = 10  # control steps to close the knuckles before lifting
-    ALPHA_LIFT = None
-    CARRY_WHERE_HELD = False
-    CARRY_BOX = ((0.015, -1, 0.015), (0.035, 1, 0.05))
-    TURN_RATE = 0.04
     LIFT, LIFT_RATE = 0.36, 0.007  # m, m per control step (success needs 0.25 m of body lift)
 
     def __init__(self, env):
         super().__init__(env)
         self.palm = PalmController(gain=self.GAIN)
         self.apex_local = np.asarray(env.objects.active.grasp_point, float)
-        self.R = self.hand_rotation(self.ALPHA)
+        self.side = -1.0  # -1: the bail lies on the robot's side (q < 0), +1: on the far side
         self.hand_now: np.ndarray | None = None
-        self.top: np.ndarray | None = None
+        self.top = self.hold = None  # lift: the tube's start (world) and where it sits in the hand
 
     def hand_rotation(self, alpha: float) -> np.ndarray:
-        """Palm orientation (3, 3): fingers toward the robot, ``alpha`` rad below the horizontal."""
+        """Palm orientation (3, 3): fingers toward ``side`` (away from the bucket's axis), ``alpha`` rad
+        below the horizontal, palm down."""
         up = self.frame.pose(0.0).R  # the bail's frame upright: x away from the robot, z up
-        return hand_frame(normal=up @ np.array([np.sin(alpha), 0.0, -np.cos(alpha)]),
-                          fingers=up @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)]))
+        side = self.side
+        return hand_frame(normal=up @ np.array([-side * np.sin(alpha), 0.0, -np.cos(alpha)]),
+                          fingers=up @ np.array([side * np.cos(alpha), 0.0, -np.sin(alpha)]))
 
     def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
         """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
@@ -220,10 +221,10 @@ class OverhandBucketSolver(Solver):
         """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
         return self.frame.pose(q).apply(self.apex_local)
 
-    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0, R: np.ndarray | None = None) -> Pose:
-        """Palm pose (orientation ``R``, default the grasp's) with the tube centre ``tube`` (world) at
-        (x_h, 0, z_h) in the palm frame."""
-        R = self.R if R is None else R
+    def palm_at(self, tube, x_h: float, z_h: float, alpha: float | None = None, up: float = 0.0) -> Pose:
+        """Palm pose (fingers ``alpha`` below the horizontal, default ``ALPHA``) with the tube centre
+        ``tube`` (world) at (x_h, 0, z_h) in the palm frame, raised by ``up`` m."""
+        R = self.hand_rotation(self.ALPHA if alpha is None else alpha)
         return Pose(np.asarray(tube) - R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), R)
 
     def tube_in_palm(self, s) -> np.ndarray:
@@ -236,6 +237,10 @@ class OverhandBucketSolver(Solver):
     @staticmethod
     def shape(finger) -> np.ndarray:
         return hand_shape(finger=(0.0, *finger))  # the thumb stays out: closing it pushed the tube away
+
+    def regrasp(self, s) -> None:
+        self.goto("approach")
+        self.side = -1.0 if s.q < 0.0 else 1.0
 
     def step(self, s) -> np.ndarray:
         tube = self.apex()
@@ -250,35 +255,28 @@ class OverhandBucketSolver(Solver):
             if np.hypot(t[0] - self.XC, t[2] - self.ZC) < self.TOL and abs(t[1]) < 0.03:
                 self.goto("close")
             elif self.phase_steps > 40:
-                self.goto("approach")
+                self.regrasp(s)
             return a
         if self.phase == "close":
             a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.SQUEEZE), speed=0.5)
             if self.phase_steps > 16:
-                self.goto("raise" if self.held(s) else "approach")
+                self.goto("raise") if self.held(s) else self.regrasp(s)
             return a
         if self.phase == "raise":
+            t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)
+            q_goal = self.side * max(self.side * s.q - self.LEAD, self.QTOP)  # turned LEAD toward upright
+            a, err, _ = self.action(s, self.palm_at(self.apex(q_goal), t[0], t[2]), self.shape(self.SQUEEZE), speed=0.5)
             if not self.held(s):
-                self.goto("approach")
-            t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX) if self.CARRY_WHERE_HELD else (self.XG, 0.0, self.ZG)
-            goal = self.palm_at(self.apex(min(s.q + self.LEAD, self.QTOP)), t[0], t[2])
-            a, err, _ = self.action(s, goal, self.shape(self.SQUEEZE), speed=self.RAISE_SPEED)
-            if s.q > self.QTOP - 0.05 and err < 0.025:
+                self.regrasp(s)
+            elif self.side * s.q < self.QTOP + 0.05 and err < 0.025:
                 self.goto("lift")
-                self.top = self.apex(self.QTOP)
-                if self.CARRY_WHERE_HELD:
-                    self.hold = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)
+                self.top, self.hold = self.apex(self.side * self.QTOP), t
             return a
         if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
-            self.goto("approach")
-        if self.ALPHA_LIFT is not None:
-            alpha = min(self.ALPHA + self.phase_steps * self.TURN_RATE, self.ALPHA_LIFT)
-            turned = max(self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS, 0)
-            up = min(turned * self.LIFT_RATE, self.LIFT)
-            xg, zg = (self.hold[0], self.hold[2]) if self.CARRY_WHERE_HELD else (self.XG, self.ZG)
-            goal = self.palm_at(self.top, xg, zg, up=up, R=self.hand_rotation(alpha))
-            a, _, _ = self.action(s, goal, self.shape(self.SQUEEZE if self.CARRY is None else self.CARRY), speed=1.0)
-            return a
-        up = min(max(self.phase_steps - self.CARRY_STEPS, 0) * self.LIFT_RATE, self.LIFT)
-        a, _, _ = self.action(s, self.palm_at(self.top, self.XG, self.ZG, up=up), self.shape(self.CARRY), speed=0.5)
+            self.regrasp(s)
+        alpha = min(self.ALPHA + self.phase_steps * self.TURN_RATE, self.ALPHA_LIFT)
+        turned = self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS
+        up = float(np.clip(turned * self.LIFT_RATE, 0.0, self.LIFT))
+        goal = self.palm_at(self.top, self.hold[0], self.hold[2], alpha=alpha, up=up)
+        a, _, _ = self.action(s, goal, self.shape(self.CARRY), speed=1.0)
         return a

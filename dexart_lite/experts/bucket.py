@@ -151,9 +151,8 @@ class OverhandBucketSolver(Solver):
     """Bucket, overhand: come down on the lying tube from above, curl the fingers round its outer side and
     under it, carry it up its circle in the closed hand, turn the hand under it, close the knuckles and lift.
 
-    Hand: palm down, fingers pointing away from the bucket's axis over the tube's outer side (toward the
-    robot for a bail lying on the robot's side), tilted ``ALPHA`` below the horizontal so that the palm's
-    wrist end rises over the rim. The back of the hand is on the flange, so the arm stays above the hand
+    Hand: palm down, fingers pointing toward the robot over the tube's outer side, tilted ``ALPHA`` below
+    the horizontal so that the palm's wrist end rises over the rim. The back of the hand is on the flange, so the arm stays above the hand
     at every bucket height (a palm-up scoop needs the flange below the palm: out of reach under ~0.17 m).
     Coordinates "in the palm frame": x_h palmar (down), z_h along the fingers.
 
@@ -164,10 +163,11 @@ class OverhandBucketSolver(Solver):
     the bail's weight leans it into the fingers while it is short of upright. The raise stops at
     ``QTOP`` from upright (success needs |q| < 0.47 rad); the lift swings the bail upright by itself.
 
-    Closed loop: every step reads where the tube is in the palm frame and which side the bail lies on.
-    A close that did not cage the tube, a raise or a lift that lost it, or a descent that does not
-    arrive goes back to the approach above wherever the tube now is, on whichever side (a bail flung
-    over the top is taken from the far side, the grasp mirrored); no step counter decides a success.
+    Closed loop: every step reads where the tube is in the palm frame. A close that did not cage the
+    tube, a raise or a lift that lost it, or a descent that does not arrive goes back to the approach
+    above wherever the tube now is; no step counter decides a success. A bail flung over the top to
+    the far side is not recovered: the mirrored grasp needs the hand turned half round about the
+    vertical, and the differential IK runs joint 6 into its 2 pi limit on the way.
 
     1. approach: open hand 5 cm above the grasp pose of the tube as it is now.
     2. descend: onto the tube, fingers straight, until the tube is within ``TOL`` of (XC, ZC).
@@ -198,17 +198,14 @@ class OverhandBucketSolver(Solver):
         super().__init__(env)
         self.palm = PalmController(gain=self.GAIN)
         self.apex_local = np.asarray(env.objects.active.grasp_point, float)
-        self.side = -1.0  # -1: the bail lies on the robot's side (q < 0), +1: on the far side
         self.hand_now: np.ndarray | None = None
         self.top = self.hold = None  # lift: the tube's start (world) and where it sits in the hand
 
     def hand_rotation(self, alpha: float) -> np.ndarray:
-        """Palm orientation (3, 3): fingers toward ``side`` (away from the bucket's axis), ``alpha`` rad
-        below the horizontal, palm down."""
+        """Palm orientation (3, 3): palm down, fingers toward the robot, ``alpha`` rad below the horizontal."""
         up = self.frame.pose(0.0).R  # the bail's frame upright: x away from the robot, z up
-        side = self.side
-        return hand_frame(normal=up @ np.array([-side * np.sin(alpha), 0.0, -np.cos(alpha)]),
-                          fingers=up @ np.array([side * np.cos(alpha), 0.0, -np.sin(alpha)]))
+        return hand_frame(normal=up @ np.array([np.sin(alpha), 0.0, -np.cos(alpha)]),
+                          fingers=up @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)]))
 
     def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
         """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
@@ -238,10 +235,6 @@ class OverhandBucketSolver(Solver):
     def shape(finger) -> np.ndarray:
         return hand_shape(finger=(0.0, *finger))  # the thumb stays out: closing it pushed the tube away
 
-    def regrasp(self, s) -> None:
-        self.goto("approach")
-        self.side = -1.0 if s.q < 0.0 else 1.0
-
     def step(self, s) -> np.ndarray:
         tube = self.apex()
         if self.phase == "approach":
@@ -255,25 +248,25 @@ class OverhandBucketSolver(Solver):
             if np.hypot(t[0] - self.XC, t[2] - self.ZC) < self.TOL and abs(t[1]) < 0.03:
                 self.goto("close")
             elif self.phase_steps > 40:
-                self.regrasp(s)
+                self.goto("approach")
             return a
         if self.phase == "close":
             a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.SQUEEZE), speed=0.5)
             if self.phase_steps > 16:
-                self.goto("raise") if self.held(s) else self.regrasp(s)
+                self.goto("raise") if self.held(s) else self.goto("approach")
             return a
         if self.phase == "raise":
             t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)
-            q_goal = self.side * max(self.side * s.q - self.LEAD, self.QTOP)  # turned LEAD toward upright
+            q_goal = min(s.q + self.LEAD, -self.QTOP)  # the tube turned LEAD further up, at most to QTOP
             a, err, _ = self.action(s, self.palm_at(self.apex(q_goal), t[0], t[2]), self.shape(self.SQUEEZE), speed=0.5)
             if not self.held(s):
-                self.regrasp(s)
-            elif self.side * s.q < self.QTOP + 0.05 and err < 0.025:
+                self.goto("approach")
+            elif s.q > -self.QTOP - 0.05 and err < 0.025:
                 self.goto("lift")
-                self.top, self.hold = self.apex(self.side * self.QTOP), t
+                self.top, self.hold = self.apex(-self.QTOP), t
             return a
         if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
-            self.regrasp(s)
+            self.goto("approach")
         alpha = min(self.ALPHA + self.phase_steps * self.TURN_RATE, self.ALPHA_LIFT)
         turned = self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS
         up = float(np.clip(turned * self.LIFT_RATE, 0.0, self.LIFT))

@@ -40,7 +40,7 @@ SPECS = {
     "faucet": TaskSpec("faucet", (-0.5, 0.0, 0.0), 0.1, 90.0, seen=11, unseen=7, half=5,
                        success={"angle": 1.5}, expert="FaucetSolver"),  # rad (~86 degrees) turned
     "bucket": TaskSpec("bucket", (-0.5, 0.0, 0.3), 0.05, 0.0, seen=11, unseen=8, half=5,
-                       success={"progress": 0.7, "lift": 0.25}, expert="BucketSolver", state_dim=33),  # lift: m
+                       success={"progress": 0.7, "lift": 0.25}, expert="OverhandBucketSolver", state_dim=33),  # lift: m
     # laptop students that saw time and the palm's velocity learned to wait instead of to look
     # (docs/results/students.md)
     "laptop": TaskSpec("laptop", (-0.5, 0.0, 0.0), 0.1, 60.0, seen=11, unseen=6, half=5,

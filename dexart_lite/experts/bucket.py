@@ -192,6 +192,7 @@ class OverhandBucketSolver(Solver):
     LEAD = 0.3  # rad: while raising, follow the tube turned this much further
     QTOP = 0.5  # rad from upright: end of the raise, the bail still leaning on the fingers
     CARRY_STEPS = 10  # control steps to close the knuckles before lifting
+    THUMB_AFTER, THUMB_PRESS = 0.02, 0.003  # m of lift before the thumb closes; m pressed into the tube
     LIFT, LIFT_RATE = 0.36, 0.007  # m, m per control step (success needs 0.25 m of body lift)
 
     def __init__(self, env):
@@ -199,7 +200,7 @@ class OverhandBucketSolver(Solver):
         self.palm = PalmController(gain=self.GAIN)
         self.apex_local = np.asarray(env.objects.active.grasp_point, float)
         self.hand_now: np.ndarray | None = None
-        self.top = self.hold = None  # lift: the tube's start (world) and where it sits in the hand
+        self.top = self.hold = self.thumb = None  # lift: the tube's start (world) and where it sits in the hand
 
     def hand_rotation(self, alpha: float) -> np.ndarray:
         """Palm orientation (3, 3): palm down, fingers toward the robot, ``alpha`` rad below the horizontal."""
@@ -232,8 +233,10 @@ class OverhandBucketSolver(Solver):
         return all(lo < v < hi for v, (lo, hi) in zip(self.tube_in_palm(s), self.HELD))
 
     @staticmethod
-    def shape(finger) -> np.ndarray:
-        return hand_shape(finger=(0.0, *finger))  # the thumb stays out: closing it pushed the tube away
+    def shape(finger, thumb=None) -> np.ndarray:
+        """Hand targets: index, middle and ring at (MCP, PIP, DIP) ``finger``, the thumb at ``thumb`` (default:
+        out of the way, hand_shape's)."""
+        return hand_shape(finger=(0.0, *finger)) if thumb is None else hand_shape(finger=(0.0, *finger), thumb=thumb)
 
     def step(self, s) -> np.ndarray:
         tube = self.apex()
@@ -264,6 +267,9 @@ class OverhandBucketSolver(Solver):
             elif s.q > -self.QTOP - 0.05 and err < 0.025:
                 self.goto("lift")
                 self.top, self.hold = self.apex(-self.QTOP), t
+                rho = self.env.objects.active.params["tube_r"]
+                self.thumb = None if self.THUMB_AFTER is None else thumb_reaching(
+                    (t[0] + 0.005, 0.025, t[2] - rho - 0.012 + self.THUMB_PRESS))
             return a
         if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
             self.goto("approach")
@@ -271,5 +277,8 @@ class OverhandBucketSolver(Solver):
         turned = self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS
         up = float(np.clip(turned * self.LIFT_RATE, 0.0, self.LIFT))
         goal = self.palm_at(self.top, self.hold[0], self.hold[2], alpha=alpha, up=up)
-        a, _, _ = self.action(s, goal, self.shape(self.CARRY), speed=1.0)
+        # Once the bucket hangs from the fingers, the thumb closes on the tube's wrist side (pressing
+        # THUMB_PRESS into it): a third finger group on the bail, as DexArt's stage 3 asks.
+        thumb = self.thumb if self.thumb is not None and up > self.THUMB_AFTER else None
+        a, _, _ = self.action(s, goal, self.shape(self.CARRY, thumb), speed=1.0)
         return a

@@ -180,13 +180,14 @@ class OverhandBucketSolver(Solver):
 
     RATE = 0.15  # rad per control step: largest change of a hand joint target
     GAIN = 10.0  # 1/s: palm position gain (the base controller's 6 lets noise drift the palm further)
+    MAX_SPEED, FINE_SPEED = 0.35, 0.5  # m/s: the palm's speed cap; its fraction near the tube
     ALPHA, ALPHA_LIFT = 0.35, 1.3  # rad: fingers below the horizontal while grasping, and for the lift
     TURN_RATE = 0.04  # rad per control step while turning the hand for the lift
     OPEN = (0.0, 0.0, 0.0)  # MCP, PIP, DIP while coming down
     SQUEEZE = (0.2, 1.6, 1.4)  # the cage: medial on the tube's outer side, distal under it
     CARRY = (1.2, 1.2, 1.0)  # the knuckles closed under the crease for the lift
     XC, ZC = 0.03, 0.05  # m: tube centre in the palm frame where the fingers close
-    HELD = ((-0.005, 0.085), (-0.06, 0.06), (-0.03, 0.075))  # m: x_h, y_h, z_h box of a tube in the hand
+    HELD = ((0.0, 0.065), (-0.06, 0.06), (-0.025, 0.06))  # m: x_h, y_h, z_h box of a tube in the hand
     CARRY_BOX = ((0.015, 0.0, 0.015), (0.035, 0.0, 0.05))  # m: where the hand keeps a held tube (the crease)
     TOL = 0.012  # m: descent arrived
     LEAD = 0.3  # rad: while raising, follow the tube turned this much further
@@ -197,7 +198,7 @@ class OverhandBucketSolver(Solver):
 
     def __init__(self, env):
         super().__init__(env)
-        self.palm = PalmController(gain=self.GAIN)
+        self.palm = PalmController(gain=self.GAIN, max_speed=self.MAX_SPEED)
         self.apex_local = np.asarray(env.objects.active.grasp_point, float)
         self.hand_now: np.ndarray | None = None
         self.top = self.hold = self.thumb = None  # lift: the tube's start (world) and where it sits in the hand
@@ -246,7 +247,7 @@ class OverhandBucketSolver(Solver):
                 self.goto("descend")
             return a
         if self.phase == "descend":
-            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.OPEN), speed=0.5)
+            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.OPEN), speed=self.FINE_SPEED)
             t = self.tube_in_palm(s)
             if np.hypot(t[0] - self.XC, t[2] - self.ZC) < self.TOL and abs(t[1]) < 0.03:
                 self.goto("close")
@@ -254,14 +255,14 @@ class OverhandBucketSolver(Solver):
                 self.goto("approach")
             return a
         if self.phase == "close":
-            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.SQUEEZE), speed=0.5)
+            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.SQUEEZE), speed=self.FINE_SPEED)
             if self.phase_steps > 16:
                 self.goto("raise") if self.held(s) else self.goto("approach")
             return a
         if self.phase == "raise":
             t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)
             q_goal = min(s.q + self.LEAD, -self.QTOP)  # the tube turned LEAD further up, at most to QTOP
-            a, err, _ = self.action(s, self.palm_at(self.apex(q_goal), t[0], t[2]), self.shape(self.SQUEEZE), speed=0.5)
+            a, err, _ = self.action(s, self.palm_at(self.apex(q_goal), t[0], t[2]), self.shape(self.SQUEEZE), speed=self.FINE_SPEED)
             if not self.held(s):
                 self.goto("approach")
             elif s.q > -self.QTOP - 0.05 and err < 0.025:

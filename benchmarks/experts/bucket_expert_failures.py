@@ -1,12 +1,15 @@
 """Why does the bucket expert fail under action noise? Each failed episode, classified by what the bail did.
 
-    python benchmarks/experts/bucket_expert_failures.py --sigma 0.1 --splits seen unseen --episodes-per-object 3 \\
-        --json benchmarks/results/experts/bucket_expert_failures.json
+    python benchmarks/experts/bucket_expert_failures.py --expert BucketSolver --sigma 0.1 --splits seen unseen \\
+        --episodes-per-object 3 --json benchmarks/results/experts/bucket_expert_failures.json
+
+(the committed JSON is of the fingertip-hook expert, ``BucketSolver``; without ``--expert`` the script reads
+the task's own expert, the overhand one.)
 
 The same episodes as ``benchmarks/experts/exploration_noise.py`` at one ``sigma`` and seed (episode ``k`` of
 object ``i`` reset with seed ``seed + 1000 k + i``, the noise drawn from ``default_rng(seed)`` in the
 same order), so the success rate equals that script's row. Every step records the expert's phase
-(``BucketSolver.phase``), the bail angle q (rad; -pi/2 lying on the robot's side, 0 upright, +pi/2
+(``Solver.phase``), the bail angle q (rad; -pi/2 lying on the robot's side, 0 upright, +pi/2
 lying on the far side) and the body's height over its reset height (m). A failed episode is:
 
 - ``flung over``: q passed ``FLUNG`` (+0.6 rad, the bail toppled beyond upright to the far side,
@@ -29,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from dexart_lite.envs import make
-from dexart_lite.experts import ScriptedPolicy
+from dexart_lite.experts import SOLVERS, ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
 from dexart_lite.objects import list_objects
 from dexart_lite.rollout import noisy, run_episodes
@@ -52,10 +55,11 @@ def classify(trace: list[tuple[str, float, float]]) -> dict:
     return {"failure": "other", "phase": phases[-1]}
 
 
-def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, object_names=None) -> list[dict]:
+def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, object_names=None,
+              expert_name: str | None = None) -> list[dict]:
     env = make("bucket", split=split, object_names=object_names, num_points=32)
     names = env.unwrapped.objects.names
-    expert = ScriptedPolicy(env)
+    expert = ScriptedPolicy(env, expert_name)
     policy = noisy(expert, sigma, np.random.default_rng(seed))  # as experts.solve.solve
     traces: list[list] = []
 
@@ -88,19 +92,21 @@ def main(argv=None) -> dict:
     parser.add_argument("--splits", nargs="+", default=["seen", "unseen"])
     parser.add_argument("--episodes-per-object", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--expert", help="another expert's class name than the task's own (dexart_lite.experts.EXPERTS)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.episodes_per_object = 1
 
-    result = {"task": "bucket", "sigma": args.sigma, "seed": args.seed, "episodes_per_object": args.episodes_per_object,
+    result = {"task": "bucket", "expert": args.expert or SOLVERS["bucket"].__name__, "sigma": args.sigma,
+              "seed": args.seed, "episodes_per_object": args.episodes_per_object,
               "thresholds_rad": {"flung": FLUNG, "raised": RAISED, "fell": FELL}, "splits": {}}
     print("| split | episodes | success | failed: flung over (phase) | fell back | other (last phase) | "
           "body settle, first 20 steps |")
     print("|---|---|---|---|---|---|---|")
     for split in args.splits:
         names = [list_objects("bucket", split)[0].name] if fast_mode() else None
-        rows = run_split(split, args.sigma, args.episodes_per_object, args.seed, names)
+        rows = run_split(split, args.sigma, args.episodes_per_object, args.seed, names, args.expert)
         failed = [r for r in rows if not r["success"]]
         counts = Counter(r["failure"] for r in failed)
         by_phase = {kind: dict(Counter(r["phase"] for r in failed if r["failure"] == kind)) for kind in counts}

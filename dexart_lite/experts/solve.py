@@ -64,12 +64,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--split", default="seen", help="seen, unseen or seen_half")
     parser.add_argument("--episodes-per-object", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--expert", help="another expert's class name than the task's own (e.g. BucketSolver, the "
+                        "bucket's fingertip hook)")
     parser.add_argument("--json", type=Path, help="write the results here")
 
 
 def run(args: argparse.Namespace) -> int:
     check_choice("task", args.task, dexart_lite.TASKS)
-    result = solve(args.task, args.split, args.episodes_per_object, args.seed)
+    result = solve(args.task, args.split, args.episodes_per_object, args.seed, expert=args.expert)
     print("| object | success |\n|---|---|")
     for name, rate in result["success_per_object"].items():
         print(f"| {name} | {rate:.2f} |")

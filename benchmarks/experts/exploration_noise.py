@@ -43,7 +43,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(SIGMAS), help="noise std per action dim")
     parser.add_argument("--seeds", "--seed", dest="seeds", type=int, nargs="+", default=[0],
                         help="one solve per seed (its own reset seeds and noise draws); the table adds their mean")
-    parser.add_argument("--expert", help="another expert's class name than the task's own (dexart_lite.experts.EXPERTS)")
+    parser.add_argument("--expert", help="another expert's class name than the task's own "
+                        "(dexart_lite.experts.EXPERTS)")
     parser.add_argument("--json", type=Path, help="write the results here (and the PNG next to it)")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence

@@ -78,5 +78,6 @@ class SynergyScriptedPolicy(ScriptedPolicy):
         return np.concatenate([a[:6], synergy_action(self.env.robot.hand_targets(a[6:]))])  # (9,)
 
 
-__all__ = ["EXPERTS", "SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver", "FaucetSolver", "FeedbackLidSolver", "PartFrame",
+__all__ = ["EXPERTS", "SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver", "FaucetSolver",
+           "FeedbackLidSolver", "PartFrame",
            "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]

@@ -152,8 +152,9 @@ class OverhandBucketSolver(Solver):
     under it, carry it up its circle in the closed hand, turn the hand under it, close the knuckles and lift.
 
     Hand: palm down, fingers pointing toward the robot over the tube's outer side, tilted ``ALPHA`` below
-    the horizontal so that the palm's wrist end rises over the rim. The back of the hand is on the flange, so the arm stays above the hand
-    at every bucket height (a palm-up scoop needs the flange below the palm: out of reach under ~0.17 m).
+    the horizontal so that the palm's wrist end rises over the rim. The back of the hand is on the flange,
+    so the arm stays above the hand at every bucket height (a palm-up scoop needs the flange below the
+    palm: out of reach under ~0.17 m).
     Coordinates "in the palm frame": x_h palmar (down), z_h along the fingers.
 
     Why this grasp (``BucketSolver`` hooks the fingertips under the tube and carries the bail up on them;
@@ -193,7 +194,7 @@ class OverhandBucketSolver(Solver):
     LEAD = 0.3  # rad: while raising, follow the tube turned this much further
     QTOP = 0.5  # rad from upright: end of the raise, the bail still leaning on the fingers
     CARRY_STEPS = 10  # control steps to close the knuckles before lifting
-    THUMB_AFTER, THUMB_PRESS = 0.02, 0.003  # m of lift before the thumb closes; m pressed into the tube
+    THUMB_AFTER, THUMB_PRESS = 0.02, 0.003  # m of hand rise before the thumb closes; m pressed into the tube
     LIFT, LIFT_RATE = 0.36, 0.007  # m, m per control step (success needs 0.25 m of body lift)
 
     def __init__(self, env):
@@ -201,7 +202,8 @@ class OverhandBucketSolver(Solver):
         self.palm = PalmController(gain=self.GAIN, max_speed=self.MAX_SPEED)
         self.apex_local = np.asarray(env.objects.active.grasp_point, float)
         self.hand_now: np.ndarray | None = None
-        self.top = self.hold = self.thumb = None  # lift: the tube's start (world) and where it sits in the hand
+        # set when the lift starts: the tube's start (world), where it sits in the hand, the thumb's closing targets
+        self.top = self.hold = self.thumb = None
 
     def hand_rotation(self, alpha: float) -> np.ndarray:
         """Palm orientation (3, 3): palm down, fingers toward the robot, ``alpha`` rad below the horizontal."""
@@ -235,9 +237,10 @@ class OverhandBucketSolver(Solver):
 
     @staticmethod
     def shape(finger, thumb=None) -> np.ndarray:
-        """Hand targets: index, middle and ring at (MCP, PIP, DIP) ``finger``, the thumb at ``thumb`` (default:
-        out of the way, hand_shape's)."""
-        return hand_shape(finger=(0.0, *finger)) if thumb is None else hand_shape(finger=(0.0, *finger), thumb=thumb)
+        """Hand targets (16,): index, middle and ring at (MCP, PIP, DIP) ``finger``, the thumb at ``thumb``
+        (default: hand_shape's, out of the way)."""
+        thumb = {} if thumb is None else {"thumb": thumb}
+        return hand_shape(finger=(0.0, *finger), **thumb)
 
     def step(self, s) -> np.ndarray:
         tube = self.apex()
@@ -247,7 +250,8 @@ class OverhandBucketSolver(Solver):
                 self.goto("descend")
             return a
         if self.phase == "descend":
-            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.OPEN), speed=self.FINE_SPEED)
+            goal = self.palm_at(tube, self.XC, self.ZC)
+            a, _, _ = self.action(s, goal, self.shape(self.OPEN), speed=self.FINE_SPEED)
             t = self.tube_in_palm(s)
             if np.hypot(t[0] - self.XC, t[2] - self.ZC) < self.TOL and abs(t[1]) < 0.03:
                 self.goto("close")
@@ -255,22 +259,23 @@ class OverhandBucketSolver(Solver):
                 self.goto("approach")
             return a
         if self.phase == "close":
-            a, _, _ = self.action(s, self.palm_at(tube, self.XC, self.ZC), self.shape(self.SQUEEZE), speed=self.FINE_SPEED)
+            goal = self.palm_at(tube, self.XC, self.ZC)
+            a, _, _ = self.action(s, goal, self.shape(self.SQUEEZE), speed=self.FINE_SPEED)
             if self.phase_steps > 16:
-                self.goto("raise") if self.held(s) else self.goto("approach")
+                self.goto("raise" if self.held(s) else "approach")
             return a
         if self.phase == "raise":
-            t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)
+            t = np.clip(self.tube_in_palm(s), *self.CARRY_BOX)  # carried where it sits, kept in the crease
             q_goal = min(s.q + self.LEAD, -self.QTOP)  # the tube turned LEAD further up, at most to QTOP
-            a, err, _ = self.action(s, self.palm_at(self.apex(q_goal), t[0], t[2]), self.shape(self.SQUEEZE), speed=self.FINE_SPEED)
+            goal = self.palm_at(self.apex(q_goal), t[0], t[2])
+            a, err, _ = self.action(s, goal, self.shape(self.SQUEEZE), speed=self.FINE_SPEED)
             if not self.held(s):
                 self.goto("approach")
             elif s.q > -self.QTOP - 0.05 and err < 0.025:
                 self.goto("lift")
                 self.top, self.hold = self.apex(-self.QTOP), t
                 rho = self.env.objects.active.params["tube_r"]
-                self.thumb = None if self.THUMB_AFTER is None else thumb_reaching(
-                    (t[0] + 0.005, 0.025, t[2] - rho - 0.012 + self.THUMB_PRESS))
+                self.thumb = thumb_reaching((t[0] + 0.005, 0.025, t[2] - rho - 0.012 + self.THUMB_PRESS))
             return a
         if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
             self.goto("approach")
@@ -280,6 +285,6 @@ class OverhandBucketSolver(Solver):
         goal = self.palm_at(self.top, self.hold[0], self.hold[2], alpha=alpha, up=up)
         # Once the bucket hangs from the fingers, the thumb closes on the tube's wrist side (pressing
         # THUMB_PRESS into it): a third finger group on the bail, as DexArt's stage 3 asks.
-        thumb = self.thumb if self.thumb is not None and up > self.THUMB_AFTER else None
+        thumb = self.thumb if up > self.THUMB_AFTER else None
         a, _, _ = self.action(s, goal, self.shape(self.CARRY, thumb), speed=1.0)
         return a

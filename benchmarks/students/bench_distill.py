@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 import dexart_lite
+from dexart_lite.experts import SOLVERS
 from dexart_lite.imitation.distill import METHODS, DistillConfig
 from dexart_lite.study import run_arm
 from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
@@ -84,6 +85,7 @@ def main(argv=None) -> dict:
 
     result = summary(per_seed, args.task, args.method, args.encoder, argv)
     result["variant"], result["overrides"] = args.variant, requested
+    result["expert"] = SOLVERS[args.task].__name__  # the teacher: the task's expert when the study ran
     write_json(path, result)
     plot(per_seed, path.with_suffix(".png"), f"{args.method} on {args.task} ({args.encoder} PointNet)")
     print(f"{args.task} {args.method}: seen {result['seen_success']:.2f} +- {result['seen_success_std']:.2f}, "

@@ -107,6 +107,18 @@ def test_bucket_expert_regrasps_a_dropped_bail():
         env.close()
 
 
+def test_an_expert_of_another_task_is_refused_by_name():
+    """``solve(expert=...)`` / ``--expert`` takes the task's own expert or an earlier one of the same task; any
+    other name is a one-line error that lists the choices."""
+    env = make("bucket", num_points=32)
+    try:
+        with pytest.raises(ValueError, match="bucket expert 'FaucetSolver'.*OverhandBucketSolver, BucketSolver"):
+            ScriptedPolicy(env, "FaucetSolver")
+        assert ScriptedPolicy(env, "BucketSolver").expert.__name__ == "BucketSolver"
+    finally:
+        env.close()
+
+
 def test_bucket_expert_under_noise_replays(monkeypatch, load_benchmark):
     """The bucket expert's noise curve is reproducible: exploration_noise.py in fast mode (the first seen
     bucket, noise std 0 and 1) gives the same rows twice with the same seed, and the noise-free episode lifts."""

@@ -92,8 +92,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--splits", nargs="+", default=["seen", "unseen"])
     parser.add_argument("--episodes-per-object", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--expert", help="another expert's class name than the task's own "
-                        "(dexart_lite.experts.EXPERTS)")
+    parser.add_argument("--expert", help="another expert of the task than its own, by class name "
+                        "(dexart_lite.experts.TASK_EXPERTS)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence

@@ -43,8 +43,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(SIGMAS), help="noise std per action dim")
     parser.add_argument("--seeds", "--seed", dest="seeds", type=int, nargs="+", default=[0],
                         help="one solve per seed (its own reset seeds and noise draws); the table adds their mean")
-    parser.add_argument("--expert", help="another expert's class name than the task's own "
-                        "(dexart_lite.experts.EXPERTS)")
+    parser.add_argument("--expert", help="another expert of the task than its own, by class name "
+                        "(dexart_lite.experts.TASK_EXPERTS)")
     parser.add_argument("--json", type=Path, help="write the results here (and the PNG next to it)")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -74,8 +74,8 @@ def main(argv=None) -> dict:
         for r in summary:
             print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- "
                   f"{r['success_std']:.2f} | {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
-    result = {"task": args.task, "expert": rows[0]["expert"], "splits": args.splits, "episodes_per_object": args.episodes_per_object,
-              "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary,
+    result = {"task": args.task, "expert": rows[0]["expert"], "splits": args.splits,
+              "episodes_per_object": args.episodes_per_object, "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary,
               **provenance(__file__, argv)}
     if args.json:
         write_json(args.json, result)

@@ -35,16 +35,18 @@ from dexart_lite.utils import check_choice
 # LidSolver it builds on opened every toilet (1.00 / 1.00) but its students failed (0.08 / 0.03, 3 seeds):
 # its decisions hinge on counters no observation shows and its side of approach flips with the placement.
 # Each task's expert is named in its spec (registration.SPECS).
-# Every expert by class name; a task's own is the one its spec names, the others are candidates that can be
-# measured beside it (``solve(expert=...)``, ``benchmarks/experts/exploration_noise.py --expert``).
 EXPERTS = {c.__name__: c for c in (BucketSolver, OverhandBucketSolver, FaucetSolver, FeedbackLidSolver)}
 SOLVERS = {task: EXPERTS[spec.expert] for task, spec in SPECS.items()}
+# The experts a task can run by name: its own, and earlier ones kept to be measured beside it (``solve(expert=...)``,
+# ``benchmarks/experts/exploration_noise.py --expert``): the bucket's fingertip hook, replaced by the overhand cage.
+EARLIER = {"bucket": (BucketSolver,)}
+TASK_EXPERTS = {task: [c.__name__ for c in (SOLVERS[task], *EARLIER.get(task, ()))] for task in SPECS}
 
 
 class ScriptedPolicy:
     """observation -> action for a DexArt-lite env, using the env's privileged state.
 
-    ``expert``: the class name of another expert than the task's own (``EXPERTS``).
+    ``expert``: the class name of another expert of the task than its own (``TASK_EXPERTS``).
     A new solver starts with every episode (step 0, or another object or pose than the last call's).
     ``privileged`` holds ``Solver.privileged`` of the state the last action answered.
     """
@@ -53,7 +55,7 @@ class ScriptedPolicy:
         self.env = env.unwrapped
         check_choice("task with a scripted solver", self.env.CATEGORY, SOLVERS)
         if expert is not None:
-            check_choice("expert", expert, EXPERTS)
+            check_choice(f"{self.env.CATEGORY} expert", expert, TASK_EXPERTS[self.env.CATEGORY])
         self.expert = SOLVERS[self.env.CATEGORY] if expert is None else EXPERTS[expert]  # the Solver class
         self.solver: Solver | None = None
         self._episode = None
@@ -78,6 +80,6 @@ class SynergyScriptedPolicy(ScriptedPolicy):
         return np.concatenate([a[:6], synergy_action(self.env.robot.hand_targets(a[6:]))])  # (9,)
 
 
-__all__ = ["EXPERTS", "SOLVERS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver", "FaucetSolver",
+__all__ = ["EXPERTS", "SOLVERS", "TASK_EXPERTS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver", "FaucetSolver",
            "FeedbackLidSolver", "PartFrame",
            "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]

@@ -35,7 +35,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     actions (``benchmarks/experts/exploration_noise.py``); drawn from an RNG seeded with ``seed``, separate
     from the env's. ``env_kwargs``: further keywords of the env (e.g. ``solver_iterations``, for
     ``benchmarks/perf/bench_physics.py``; ``hand="synergy"``: the expert's hand projected on the synergies).
-    ``expert``: another expert's class name than the task's own (``dexart_lite.experts.EXPERTS``).
+    ``expert``: another expert of the task than its own, by class name (``dexart_lite.experts.TASK_EXPERTS``).
     """
     from dexart_lite.envs import make
 

@@ -75,7 +75,8 @@ def main(argv=None) -> dict:
             print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- "
                   f"{r['success_std']:.2f} | {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
     result = {"task": args.task, "expert": rows[0]["expert"], "splits": args.splits,
-              "episodes_per_object": args.episodes_per_object, "seeds": args.seeds, "rows": rows, "mean_over_seeds": summary,
+              "episodes_per_object": args.episodes_per_object, "seeds": args.seeds, "rows": rows,
+              "mean_over_seeds": summary,
               **provenance(__file__, argv)}
     if args.json:
         write_json(args.json, result)

@@ -80,6 +80,5 @@ class SynergyScriptedPolicy(ScriptedPolicy):
         return np.concatenate([a[:6], synergy_action(self.env.robot.hand_targets(a[6:]))])  # (9,)
 
 
-__all__ = ["EXPERTS", "SOLVERS", "TASK_EXPERTS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver", "FaucetSolver",
-           "FeedbackLidSolver", "PartFrame",
-           "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]
+__all__ = ["EXPERTS", "SOLVERS", "TASK_EXPERTS", "PRIVILEGED_DIM", "BucketSolver", "OverhandBucketSolver",
+           "FaucetSolver", "FeedbackLidSolver", "PartFrame", "ScriptedPolicy", "Solver", "SynergyScriptedPolicy"]

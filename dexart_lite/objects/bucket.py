@@ -5,7 +5,7 @@ stands at -x):
 
 * The two pivots sit on the +-y sides of the wall, ``pivot_drop`` below the rim, on short lugs.
 * Bail frame = joint frame: origin at the midpoint of the two pivots (on the bucket axis), rpy = 0.
-  Joint axis (0, 1, 0): the pivot line itself (assets.md Appendix B: an axis perpendicular to the
+  Joint axis (0, 1, 0): the pivot line itself (an axis perpendicular to the
   pivot line looks plausible but is kinematically wrong).
 * q = 0: bail upright (apex straight above the pivot line). q > 0 tips the apex toward +x, q < 0
   toward -x. Limits [-pi/2, pi/2]; init = -pi/2: the bail lies flat on the robot's side (apex toward
@@ -13,7 +13,7 @@ stands at -x):
 * Grasp point = the bail apex at q = 0 (centre line of the grip tube), in the bail frame.
 * Friction 0 (DexArt). Densities: body 7800, bail 100 kg/m^3 (DexArt). Thin steel walls: the wall
   thickness is derived from a drawn body mass of 1.2-2.4 kg (floor 1.5x the wall), because
-  assets.md's 4-8 mm walls at 7800 kg/m^3 give 2-8 kg buckets, too heavy for a hand to lift.
+  4-8 mm steel walls at 7800 kg/m^3 give 2-8 kg buckets, too heavy for a hand to lift.
 * The bail radius clears the rim over the whole swing: R = sqrt(r_top^2 + drop^2) + tube + clearance.
 """
 

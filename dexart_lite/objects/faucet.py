@@ -12,7 +12,7 @@ z = 0 at the bottom of the plate; the robot stands at -x):
 * init = 0, target = 0 (unused by the task: success is |q| > 1.5).
 * Grasp point = the handle link origin (hub centre, on the axis): DexArt's faucet handle point is the
   origin of the ``switch`` link.
-* Joint friction is a drawn parameter, 0.05-0.3 N*m (assets.md section 3.3).
+* Joint friction is a drawn parameter, 0.05-0.3 N*m.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Draw, check and write the committed object set: ``urdf/objects/<category>/<split>/<name>/``.
 
-The recipe (assets.md section 3.4):
+The recipe (``urdf/objects/README.md`` says what it produced):
 
 * Seeds are fixed per (category, split, index, attempt): ``sha256("dexart_lite/objects/...")``, never
   Python's ``hash()``. Attempt k + 1 is drawn only when attempt k is rejected.

@@ -109,7 +109,7 @@ def wall_sectors(bottom, top, z0: float, z1: float, thickness: float) -> list[tr
 
     ``bottom`` and ``top`` are counter-clockwise outlines ``(N, 2)`` with corresponding vertices,
     placed at heights z0 and z1; the wall is ``thickness`` thick, measured inward. Each piece is the
-    hull of its 8 corner points (chord-faced sectors, assets.md Appendix B).
+    hull of its 8 corner points (chord-faced sectors).
     """
     bottom, top = np.asarray(bottom, dtype=float), np.asarray(top, dtype=float)
     bottom_in = bottom + thickness * _inward_normals(bottom)

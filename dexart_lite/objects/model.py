@@ -35,7 +35,7 @@ class Param:
 
     ``ranges`` maps a template letter to its (lo, hi) range (lo == hi: a fixed value for that
     template). ``heldout`` lists bands, as fractions of the A/B range, that seen objects never draw
-    from and that some unseen objects draw from (assets.md section 3.4).
+    from and that some unseen objects draw from (``urdf/objects/README.md``, Templates and parameters).
     """
 
     name: str

@@ -31,7 +31,7 @@ from dexart_lite.registration import SPECS
 # U[0, r)^3 (m), yaw +-deg; the robot base (ROBOT_BASE, world, m) faces +x.
 RAND_POS = {c: SPECS[c].rand_pos for c in SPECS}
 RAND_YAW_DEG = {c: SPECS[c].rand_yaw_deg for c in SPECS}
-SHOULDER_HEIGHT = 0.267  # m, xArm6 joint2 above the robot base (assets.md section 1.2)
+SHOULDER_HEIGHT = 0.267  # m, xArm6 joint2 above the robot base (the arm's URDF in pybullet_data)
 REACH = 0.62  # m, usable distance from the shoulder
 MIN_FRONT = 0.25  # m, the grasp point must be at least this far in front of the robot base
 YAW_SAMPLES = 13

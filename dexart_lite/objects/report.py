@@ -1,4 +1,4 @@
-"""How far the unseen objects are from the seen ones (assets.md section 3.4, item 5).
+"""How far the unseen objects are from the seen ones.
 
 Two distances per pair of objects of a category:
 

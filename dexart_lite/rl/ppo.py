@@ -236,7 +236,7 @@ PRESETS: dict[str, dict] = {
     # object, env seed 1000, 2 seeds): on faucets it raises seen success and keeps unseen (0.60 / 0.57 ->
     # 0.69 / 0.56, finetune_faucet.json); with --anchor-coef 1 the laptop students improve on both splits
     # (0.63 / 0.65 -> 0.70 / 0.73, finetune_laptop_anchor.json).
-    # From scratch on 2 cores (issue 16): the cpu preset with the departures the state-only diagnostic
+    # From scratch on 2 cores: the cpu preset with the departures the state-only diagnostic
     # uses (lr 3e-4, not 1e-4; rewards x 0.01, not x 1, so the critic fits values of order 1 although the
     # success bonus reaches ~300; initial action std 0.3, not 1: with std 1 even the expert never lifts
     # a lid, benchmarks/experts/exploration_noise.py) plus a fixed input normalisation from 2,000 steps of the

@@ -10,7 +10,30 @@ from dexart_lite.experts.geometry import TUCKED_THUMB, Pose, finger_tip, hand_fr
 from dexart_lite.pointcloud import quat_to_matrix
 
 
-class BucketSolver(Solver):
+class BailSolver(Solver):
+    """What the bucket experts share: the bail's grip tube (its apex) and hand targets that move at most
+    ``RATE`` rad per control step (a light bail flies off a finger that snaps shut)."""
+
+    RATE = 0.08  # rad per control step: largest change of a hand joint target
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.apex_local = np.asarray(env.objects.active.grasp_point, float)  # tube centre at q = 0, bail frame
+        self.hand_now: np.ndarray | None = None  # the rate-limited hand targets (16,) rad
+
+    def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
+        """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
+        hand = np.asarray(hand, float)
+        self.hand_now = hand.copy() if self.hand_now is None else self.hand_now + np.clip(
+            hand - self.hand_now, -self.RATE, self.RATE)
+        return super().action(state, target, self.hand_now, speed)
+
+    def apex(self, q: float | None = None) -> np.ndarray:
+        """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
+        return self.frame.pose(q).apply(self.apex_local)
+
+
+class BucketSolver(BailSolver):
     """Bucket: lift the lying bail on hooked fingertips, close a fist round it, lift the bucket.
 
     Bail frame (``PartFrame``): the pivot line is +y, q = 0 upright, q = -pi/2 lying toward the
@@ -37,7 +60,6 @@ class BucketSolver(Solver):
     6. lift: straight up ``LIFT``; the bucket hangs from the fist with the bail upright.
     """
 
-    RATE = 0.08  # rad per control step: largest change of a hand joint target
     GAP = 0.003  # m: finger's palmar face to the tube while hooking and sliding
     DELTA = -0.002  # m: fingertip centre this far (x) from the tube centre (toward the robot)
     PUSH = 0.003  # m: hooked tips aimed this far up into the tube
@@ -54,7 +76,6 @@ class BucketSolver(Solver):
     def __init__(self, env):
         super().__init__(env)
         p = env.objects.active.params
-        self.apex_local = np.asarray(env.objects.active.grasp_point, float)
         rho = p["tube_r"]
         self.R = hand_frame(normal=(1, 0, 0), fingers=(0, 0, -1))
         self.c = rho + 0.0098 + self.GAP  # x_h of the tube centre: just in front of the fingers
@@ -72,30 +93,10 @@ class BucketSolver(Solver):
         bail_r = float(np.linalg.norm(self.apex_local))
         self.q_mid = -float(np.clip(np.arcsin(np.clip((x_clear - self.c - 0.0098) / bail_r, -1, 1)), 0.15, 0.35))
         self.thumb = thumb_reaching((self.c, self.THUMB_Y, self.FIST_Z - rho - 0.012 + self.THUMB_SQUEEZE))
-        self.hand_now: np.ndarray | None = None
 
-    def hand_rotation(self, alpha: float) -> np.ndarray:
-        """Palm orientation (3, 3): fingers toward the robot, ``alpha`` rad below the horizontal."""
-        up = self.frame.pose(0.0).R  # the bail's frame upright: x away from the robot, z up
-        return hand_frame(normal=up @ np.array([np.sin(alpha), 0.0, -np.cos(alpha)]),
-                          fingers=up @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)]))
-
-    def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
-        """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
-        hand = np.asarray(hand, float)
-        self.hand_now = hand.copy() if self.hand_now is None else self.hand_now + np.clip(
-            hand - self.hand_now, -self.RATE, self.RATE)
-        return super().action(state, target, self.hand_now, speed)
-
-    def apex(self, q: float | None = None) -> np.ndarray:
-        """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
-        return self.frame.pose(q).apply(self.apex_local)
-
-    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0, R: np.ndarray | None = None) -> Pose:
-        """Palm pose (orientation ``R``, default the grasp's) with the tube centre ``tube`` (world) at
-        (x_h, 0, z_h) in the palm frame."""
-        R = self.R if R is None else R
-        return Pose(np.asarray(tube) - R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), R)
+    def palm_at(self, tube, x_h: float, z_h: float, up: float = 0.0) -> Pose:
+        """Palm pose with the tube centre ``tube`` (world) at (x_h, 0, z_h) in the palm frame."""
+        return Pose(np.asarray(tube) - self.R @ np.array([x_h, 0.0, z_h]) + np.array([0.0, 0.0, up]), self.R)
 
     def shape(self, finger=(0.0, 0.0, 0.0), thumb=TUCKED_THUMB) -> np.ndarray:
         return hand_shape(finger=(0.0, *finger), thumb=thumb)
@@ -147,7 +148,7 @@ class BucketSolver(Solver):
         return a
 
 
-class OverhandBucketSolver(Solver):
+class OverhandBucketSolver(BailSolver):
     """Bucket, overhand: come down on the lying tube from above, curl the fingers round its outer side and
     under it, carry it up its circle in the closed hand, turn the hand under it, close the knuckles and lift.
 
@@ -179,7 +180,7 @@ class OverhandBucketSolver(Solver):
        (``CARRY``), then straight up ``LIFT``.
     """
 
-    RATE = 0.15  # rad per control step: largest change of a hand joint target
+    RATE = 0.15  # rad per control step: the hand may close faster here, the tube is caged as it closes
     GAIN = 10.0  # 1/s: palm position gain (the base controller's 6 lets noise drift the palm further)
     MAX_SPEED, FINE_SPEED = 0.35, 0.5  # m/s: the palm's speed cap; its fraction near the tube
     ALPHA, ALPHA_LIFT = 0.35, 1.3  # rad: fingers below the horizontal while grasping, and for the lift
@@ -200,8 +201,6 @@ class OverhandBucketSolver(Solver):
     def __init__(self, env):
         super().__init__(env)
         self.palm = PalmController(gain=self.GAIN, max_speed=self.MAX_SPEED)
-        self.apex_local = np.asarray(env.objects.active.grasp_point, float)
-        self.hand_now: np.ndarray | None = None
         # set when the lift starts: the tube's start (world), where it sits in the hand, the thumb's closing targets
         self.top = self.hold = self.thumb = None
 
@@ -210,17 +209,6 @@ class OverhandBucketSolver(Solver):
         up = self.frame.pose(0.0).R  # the bail's frame upright: x away from the robot, z up
         return hand_frame(normal=up @ np.array([np.sin(alpha), 0.0, -np.cos(alpha)]),
                           fingers=up @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)]))
-
-    def action(self, state, target: Pose, hand: np.ndarray, speed: float = 1.0):
-        """As ``Solver.action``, with the hand joint targets moving at most ``RATE`` per step."""
-        hand = np.asarray(hand, float)
-        self.hand_now = hand.copy() if self.hand_now is None else self.hand_now + np.clip(
-            hand - self.hand_now, -self.RATE, self.RATE)
-        return super().action(state, target, self.hand_now, speed)
-
-    def apex(self, q: float | None = None) -> np.ndarray:
-        """World position of the tube centre at the apex, at bail angle ``q`` (default: now)."""
-        return self.frame.pose(q).apply(self.apex_local)
 
     def palm_at(self, tube, x_h: float, z_h: float, alpha: float | None = None, up: float = 0.0) -> Pose:
         """Palm pose (fingers ``alpha`` below the horizontal, default ``ALPHA``) with the tube centre

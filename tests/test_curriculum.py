@@ -388,10 +388,10 @@ def test_the_curriculum_benchmarks_student_step_alone_distils_and_records_each_s
     stamp = (student / "checkpoint.pt").stat().st_mtime_ns
     assert bench.main(argv)["per_seed"] == written["per_seed"]
     assert (student / "checkpoint.pt").stat().st_mtime_ns == stamp
-    # a committed student (<results>/checkpoints/<name>) missing from --runs is copied there and read back, not
+    # a parked student (<results>/in_progress/<name>) missing from --runs is copied there and read back, not
     # distilled again
-    (tmp_path / "results" / "checkpoints").mkdir()
-    shutil.move(student, tmp_path / "results" / "checkpoints" / student.name)
+    (tmp_path / "results" / "in_progress").mkdir()
+    shutil.move(student, tmp_path / "results" / "in_progress" / student.name)
     assert bench.main(argv)["per_seed"] == written["per_seed"]
     assert (student / "checkpoint.pt").stat().st_mtime_ns == stamp
     # --jobs 2: seeds in processes of their own, rows in seed order (seed 0 read back, seed 1 distilled)
@@ -400,6 +400,36 @@ def test_the_curriculum_benchmarks_student_step_alone_distils_and_records_each_s
     assert json.loads((tmp_path / "runs" / "laptop_cloud_student_s1" / "run.json").read_text())["config"]["seed"] == 1
     with pytest.raises(ValueError, match="student recipe"):
         bench.main([*argv[:5], "reverse_bc", *argv[6:]])
+
+
+def test_parking_keeps_only_what_continues_an_unfinished_run_and_deletes_a_finished_one(tmp_path, load_benchmark):
+    """Between sittings a run stopped short of its frames keeps its checkpoint and run.json, and its student's,
+    under the one parked folder (no logs); once finished, its folder and its student's there are deleted."""
+    from types import SimpleNamespace
+
+    bench = load_benchmark("curriculum_runs")
+    runs, committed = tmp_path / "runs", tmp_path / "in_progress"
+
+    def run(name: str, frames: int, asked: int | None, init_from: str = "") -> SimpleNamespace:
+        folder = runs / name
+        (folder / "log" / "scalars").mkdir(parents=True)
+        (folder / "log" / "scalars" / "loss.csv").write_text("step,value\n")
+        (folder / "checkpoint.pt").write_bytes(b"weights")
+        config = {**({"frames": asked} if asked is not None else {}), **({"init_from": init_from} if init_from else {})}
+        (folder / "run.json").write_text(json.dumps({"frames": frames, "config": config}))
+        return SimpleNamespace(out=str(folder), frames=asked)
+
+    student = run("t_cloud_student_s0", 0, None)  # a student's config has no frames
+    (runs / "t_cloud_student_s0" / "eval_seen.json").write_text("{}")
+    rl = run("t_cloud_r_s0", 400, 1000, init_from=str(runs / "t_cloud_student_s0" / "checkpoint.pt"))
+    assert bench.park([rl], [student], committed) == ["t_cloud_r_s0", "t_cloud_student_s0"]
+    assert sorted(p.name for p in (committed / "t_cloud_r_s0").iterdir()) == ["checkpoint.pt", "run.json"]
+    assert sorted(p.name for p in (committed / "t_cloud_student_s0").iterdir()) == [
+        "checkpoint.pt", "eval_seen.json", "run.json"]
+    # the run finishes in a later sitting: nothing of it, or of its student, stays parked
+    (runs / "t_cloud_r_s0" / "run.json").write_text(json.dumps({"frames": 1000, "config": {"frames": 1000}}))
+    assert bench.park([rl], [student], committed) == []
+    assert list(committed.iterdir()) == []
 
 
 def test_the_clone_capacity_benchmark_writes_the_fields_it_documents(tmp_path, load_benchmark):

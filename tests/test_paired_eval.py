@@ -210,31 +210,46 @@ def test_a_checkpoint_sweep_summarises_each_series_against_its_start(load_benchm
 
 
 def test_a_checkpoint_sweep_reads_committed_checkpoints_from_git_with_their_evaluations(
-        tmp_path, monkeypatch, load_benchmark, git_checkout):
+        tmp_path, monkeypatch, load_benchmark):
     """``REV:path`` checkpoints come out of git with the held-out evaluations committed beside them, which are read
-    back (nothing is evaluated again: evaluating would raise here) and reported as they were measured."""
+    back (nothing is evaluated again: evaluating would raise here) and reported as they were measured. The repository
+    is one made here: a student and an RL checkpoint (two shipped policies) with their evaluations, committed."""
+    import shutil
     import subprocess
 
     from dexart_lite.rl import evaluate
+    from dexart_lite.rl.checkpoint import load_checkpoint
+    from dexart_lite.zoo import resolve as zoo_path
 
     bench = load_benchmark("checkpoint_sweep")
-    names = subprocess.run(["git", "ls-tree", "-r", "--name-only", "HEAD"], capture_output=True, text=True,
-                           cwd=bench.REPO).stdout.split()
-    folders = sorted({str(Path(n).parent) for n in names if n.endswith("heldout_unseen_e10_seed1000.json")})
-    student = next(f for f in folders if f.endswith("_cloud_student_s0"))
-    rl = next(f for f in folders if f.startswith(student[:-len("student_s0")]) and f != student and f.endswith("_s0"))
+    repo = tmp_path / "repo"
+    successes = {"student": (0.4, 0.3), "rl": (0.7, 0.5)}
+    for folder, task in (("student", "faucet"), ("rl", "laptop")):
+        (repo / folder).mkdir(parents=True)
+        shutil.copy(zoo_path(f"zoo:{task}"), repo / folder / "checkpoint.pt")
+        frames = load_checkpoint(repo / folder / "checkpoint.pt")["frames"]
+        for split, success in zip(("seen", "unseen"), successes[folder]):
+            result = {"task": task, "frames": frames, "success_rate": success, "episodes_per_object": 10,
+                      "objects": {"a": {"success_rate": success}, "b": {"success_rate": success}}}
+            (repo / folder / f"heldout_{split}_e10_seed1000.json").write_text(json.dumps(result))
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(repo)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-qm", "runs"], check=True)
+    monkeypatch.setattr(bench, "REPO", repo)
 
     def boom(*args, **kwargs):
         raise AssertionError("a committed evaluation was run again")
 
     monkeypatch.setattr(evaluate, "evaluate_checkpoint", boom)
-    out = bench.main([f"s0=HEAD:{rl}/checkpoint.pt", "--start", f"s0=HEAD:{student}/checkpoint.pt",
+    out = bench.main(["s0=HEAD:rl/checkpoint.pt", "--start", "s0=HEAD:student/checkpoint.pt",
                       "--cache", str(tmp_path / "cache"), "--json", str(tmp_path / "sweep.json")])
-    committed = json.loads((bench.REPO / rl / "heldout_seen_e10_seed1000.json").read_text())
+    committed = json.loads((repo / "rl" / "heldout_seen_e10_seed1000.json").read_text())
     s0 = out["series"]["s0"]
     assert s0["start"]["frames"] == 0 and s0["checkpoints"][0]["frames"] == committed["frames"] > 0
-    assert s0["checkpoints"][0]["seen"]["success"] == committed["success_rate"]
-    assert out["summary"]["seen_gain"] == pytest.approx(committed["success_rate"] - s0["start"]["seen"]["success"])
+    assert s0["checkpoints"][0]["seen"]["success"] == committed["success_rate"] == 0.7
+    assert out["summary"]["seen_gain"] == pytest.approx(0.7 - 0.4)
+    assert out["summary"]["unseen_gain"] == pytest.approx(0.5 - 0.3)
     assert (tmp_path / "sweep.png").is_file()
 
 

@@ -20,8 +20,11 @@ continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-se
     mean frontier),
     seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
 
-A student or run committed under ``benchmarks/results/rl/curriculum/checkpoints`` (``<results>/checkpoints``) whose
-folder ``--runs`` lacks is copied there first, and so read back or continued (``--no-committed``: never).
+Runs that span several sittings: at the end of every call each seed stopped short of ``--frames`` (``--max-minutes``)
+is parked in ``benchmarks/results/in_progress/<run>`` (``--committed``): its last checkpoint and ``run.json``, and
+its student's, nothing else (no logs, no demonstrations), to be committed; a finished seed's folder there is
+deleted. A parked run whose folder ``--runs`` lacks is copied there first, and so continued
+(``--no-committed``: never read from or written to that folder).
 
 ``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json`` (a recipe
 from a student variant: ``<task>_cloud_student_<variant>.json``, ``STUDENT_VARIANTS``): task,
@@ -54,6 +57,8 @@ from dexart_lite.utils import (benchmark_results, fast_mode, machine_info, proce
                                write_json)
 
 RESULTS = benchmark_results(__file__) / "curriculum"
+# the one folder for runs that span several sittings: only their latest checkpoints, deleted when they finish
+IN_PROGRESS = benchmark_results(__file__).parent / "in_progress"
 # Recipes: the fast preset (4k frames per batch, 5 epochs, lr 3e-4, rewards x 0.01) plus these fields.
 # reverse_bc: RFCL's reverse curriculum (a frontier per demonstration, moved back 5 steps after 3 successes in
 # a row from it) on a policy cloned from the expert first (30 epochs of MSE on 4 noisy expert episodes per
@@ -201,7 +206,7 @@ RECIPES["dagger8_wide_flat"] = {**RECIPES["dagger_wide_flat"], "dagger_rounds": 
 # departure): does the better clone need the flat reward to keep >= 0.8 seen?
 RECIPES["dagger8_wide"] = {**RECIPES["dagger_wide"], "dagger_rounds": 8}
 # the committed JSON of each task's headline student (bench_distill): its "overrides" are the student step's
-STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket.json",
+STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucket_overhand.json",
             "laptop": "distill_laptop_episodes2x_noise.json", "toilet": "distill_toilet_episodes2x.json"}
 # Student variants: a student recipe whose "student" is a name here starts from the headline student's settings plus
 # these DistillConfig fields, distilled into runs/curriculum/<task>_cloud_student_<name>_s<seed> (True: the headline
@@ -417,18 +422,71 @@ def machine_records(machine: dict, earlier: dict | None, rows: list[dict]) -> di
 
 
 def adopt_committed(out: Path, committed: Path) -> bool:
-    """Copy the committed run of ``out``'s name (``committed/<name>``: a student, or an unfinished run's last
-    checkpoint, README there) into ``out`` when ``out`` does not exist, so that it is read back or continued
-    (``run_arm`` still compares its settings) instead of done again: a student takes ~45 min per seed to distil on
-    two cores. True if one was copied."""
+    """Copy the parked run of ``out``'s name (``committed/<name>``: an unfinished run's last checkpoint, or the
+    student it starts from) into ``out`` when ``out`` does not exist, so that it is continued or read back
+    (``run_arm`` still compares its settings) instead of done again: a student takes ~45 min per seed to distil
+    on two cores. True if one was copied."""
     import shutil
 
     source = committed / out.name
     if out.exists() or not (source / "run.json").exists():
         return False
     shutil.copytree(source, out)
-    print(f"{out.name}: copied the committed run from {source}; it is read back or continued")
+    print(f"{out.name}: copied the parked run from {source}; it is continued or read back")
     return True
+
+
+# what a parked run keeps: enough to continue (PPO, SAC) or to be read back (a student), nothing that can be made again
+PARKED_FILES = ("run.json", "checkpoint.pt", "eval_seen.json", "eval_unseen.json", "report.md")
+
+
+def park(cfgs: list, students: list, committed: Path) -> list[str]:
+    """After a call: each run of ``cfgs`` stopped short of its frames is copied (``PARKED_FILES`` only) with its
+    student to ``committed/<name>``; a finished run's folder there is deleted, and so is a student's that no parked
+    run starts from any more. The names parked now, sorted."""
+    import shutil
+
+    def copy(folder: Path) -> None:
+        target = committed / folder.name
+        shutil.rmtree(target, ignore_errors=True)
+        target.mkdir(parents=True)
+        for name in PARKED_FILES:
+            if (folder / name).is_file():
+                shutil.copy2(folder / name, target / name)
+
+    for cfg, student in zip(cfgs, students):
+        out = Path(cfg.out)
+        record = out / "run.json"
+        if not record.exists():  # never trained (interrupted before its first checkpoint): nothing to keep
+            continue
+        if json.loads(record.read_text())["frames"] < cfg.frames:
+            copy(out)
+            if student is not None:
+                copy(Path(student.out))
+        else:
+            shutil.rmtree(committed / out.name, ignore_errors=True)
+    folders = [f for f in committed.iterdir() if f.is_dir()] if committed.exists() else []
+    parked = sorted(f.name for f in folders if _unfinished(f))
+    wanted = {Path(_config(committed / name)["init_from"]).parent.name for name in parked
+              if _config(committed / name).get("init_from")}
+    for folder in folders:
+        if folder.name not in parked and folder.name not in wanted:
+            shutil.rmtree(folder)
+    return sorted([*parked, *wanted])
+
+
+def _unfinished(folder: Path) -> bool:
+    """A parked RL run (not a student): its checkpoint holds fewer frames than its config asks for."""
+    record = folder / "run.json"
+    if not record.exists() or not (folder / "checkpoint.pt").is_file():
+        return False
+    done = json.loads(record.read_text())
+    return "frames" in done["config"] and done["frames"] < done["config"]["frames"]
+
+
+def _config(folder: Path) -> dict:
+    record = folder / "run.json"
+    return json.loads(record.read_text())["config"] if record.exists() else {}
 
 
 def main(argv=None) -> dict:
@@ -449,8 +507,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
     parser.add_argument("--students-only", action="store_true",
                         help="a student recipe's distillation step alone (no RL), to <task>_cloud_student.json")
+    parser.add_argument("--committed", type=Path, default=None, help="where unfinished runs are parked between "
+                        f"sittings (default {IN_PROGRESS.relative_to(IN_PROGRESS.parents[2])}; with another --results: "
+                        "<results>/in_progress)")
     parser.add_argument("--no-committed", action="store_true",
-                        help="never copy the committed students and checkpoints (<results>/checkpoints) into --runs")
+                        help="never copy parked runs (--committed) into --runs, nor park any there")
     parser.add_argument("--refresh-curves", action="store_true",
                         help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
     args = parser.parse_args(argv)
@@ -459,12 +520,13 @@ def main(argv=None) -> dict:
     if fast_mode() and args.results == RESULTS:  # never overwrite the committed evidence with a smoke run
         raise ValueError("fast mode writes smoke results: pass --results elsewhere")
     path = args.results / f"{args.task}_{args.obs}_{args.recipe}.json"
+    committed = args.committed or (IN_PROGRESS if args.results == RESULTS else args.results / "in_progress")
     cfgs = [config(args.task, args.obs, args.recipe, s, args.frames, args) for s in args.seeds]
     students = [student_config(args.task, s, args, args.recipe) if RECIPES[args.recipe].get("student") else None
                 for s in args.seeds]
     runs = [run for run in [*students, *([] if args.students_only else cfgs)] if run is not None]
     for run in [] if args.no_committed else runs:
-        adopt_committed(Path(run.out), args.results / "checkpoints")
+        adopt_committed(Path(run.out), committed)
     for student in filter(None, students):
         if not (Path(student.out) / "run.json").exists():
             print(f"{Path(student.out).name}: no student yet, distilled first (beside another on 2 cores: "
@@ -494,6 +556,9 @@ def main(argv=None) -> dict:
             write_json(path, summary)
             print(f"seed {row['seed']}: {row['frames']} frames, seen {row['seen_success']:.2f}, "
                   f"unseen {row['unseen_success']:.2f} -> {path}")
+    if not args.no_committed:
+        parked = park(cfgs, students, committed)
+        print(f"parked in {committed} (commit it; the same command continues): {', '.join(parked) or 'nothing'}")
     return summary
 
 

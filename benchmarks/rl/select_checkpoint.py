@@ -4,7 +4,7 @@ env seed, then its held-out success on both splits beside the run's last checkpo
     python benchmarks/rl/select_checkpoint.py --jobs 2 --json benchmarks/results/rl/laptop_floor_b16k_selected.json \\
         --start s0=runs/curriculum/laptop_cloud_student_s0/checkpoint.pt \\
         s1=runs/curriculum/laptop_cloud_student_s1/checkpoint.pt -- \\
-        s0=HEAD:benchmarks/results/rl/curriculum/checkpoints/laptop_cloud_student_anchored_floor_flat_b16k_s0/checkpoint.pt \\
+        s0=b3693a9:benchmarks/results/rl/curriculum/checkpoints/laptop_cloud_student_anchored_floor_flat_b16k_s0/checkpoint.pt \\
         s0=runs/snapshots/floor5_s0_1796300000/checkpoint.pt ...
 
 Why: the checkpoints of one PPO run swing from one to the next by about as much as RL gains over its student

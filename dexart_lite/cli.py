@@ -18,7 +18,7 @@ import typing
 
 # subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("dexart_lite.demo", "run the main job on defaults (what `make demo` runs)"),
+    "demo": ("dexart_lite.quickstart", "run the main job on defaults (what `make demo` runs)"),
     "objects": ("dexart_lite.objects.cli", "list, show, generate and compare the articulated objects"),
     "render": ("dexart_lite.render", "save a GIF of one episode"),
     "solve": ("dexart_lite.experts.solve", "run the scripted (privileged-state) solver on a task"),

@@ -83,7 +83,7 @@ def test_counts_splits_and_half_sets():
 
 
 def test_heldout_bands_are_not_drawn_by_seen_objects():
-    for category, spec in generate.SPECS.items():
+    for category, spec in generate.CATEGORY_SPECS.items():
         for info in cat.list_objects(category, "seen"):
             for name in spec.primary:
                 param = spec.param(name)
@@ -374,7 +374,7 @@ def test_regeneration_is_byte_for_byte(info, tmp_path):
 
 def _broken(category: str, template: str, damage) -> tuple:
     params = generate.draw_params(category, "seen", 0 if template == "A" else 1, 0)[2]
-    model = generate.SPECS[category].build(template, params)
+    model = generate.CATEGORY_SPECS[category].build(template, params)
     damage(model)
     return model
 

@@ -55,9 +55,9 @@ def _selected(category: str | None, split: str | None) -> list[objects.ObjectInf
 
 
 def _summary(info: objects.ObjectInfo) -> dict:
-    from dexart_lite.objects.generate import SPECS
+    from dexart_lite.objects.generate import CATEGORY_SPECS
 
-    keys = SPECS[info.category].summary_keys
+    keys = CATEGORY_SPECS[info.category].summary_keys
     return {"category": info.category, "split": info.split, "index": info.index, "name": info.name,
             "template": info.template, "dimensions": {k: info.params[k] for k in keys},
             "joint": {"name": info.joint_name, "lower": info.joint_lower, "upper": info.joint_upper,

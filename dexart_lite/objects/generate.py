@@ -36,8 +36,8 @@ from dexart_lite.objects.model import CategorySpec, ObjectModel, urdf_text
 from dexart_lite.registration import SPECS as TASK_SPECS
 
 GENERATOR_VERSION = 2  # bump whenever a generator's output changes for the same parameters
-SPECS: dict[str, CategorySpec] = {"faucet": faucet.SPEC, "bucket": bucket.SPEC, "laptop": laptop.SPEC,
-                                  "toilet": toilet.SPEC}
+CATEGORY_SPECS: dict[str, CategorySpec] = {"faucet": faucet.SPEC, "bucket": bucket.SPEC, "laptop": laptop.SPEC,
+                                           "toilet": toilet.SPEC}
 SPLIT_SIZES = {c: {"seen": spec.seen, "unseen": spec.unseen} for c, spec in TASK_SPECS.items()}  # DexArt's
 DUPLICATE_EPS = 0.08  # normalised parameter distance below which a draw is a near-duplicate
 MAX_ATTEMPTS = 200
@@ -87,7 +87,7 @@ def template_and_band(category: str, split: str, index: int) -> tuple[str, Band 
     if index < n_template_c:
         return "C", None
     k = index - n_template_c
-    spec = SPECS[category]
+    spec = CATEGORY_SPECS[category]
     p1, p2 = spec.primary
     # Cycle (p1, interior), (p2, outer), (p1, outer), (p2, interior) so few objects cover all four.
     param, band_i = [(p1, 0), (p2, 1), (p1, 1), (p2, 0)][k % 4]
@@ -115,7 +115,7 @@ def _allowed_fraction(rng: np.random.Generator, bands) -> float:
 
 def draw_params(category: str, split: str, index: int, attempt: int) -> tuple[str, Band | None, dict, int]:
     """Template, band, parameters and seed of one attempt (pure function of its arguments)."""
-    spec = SPECS[category]
+    spec = CATEGORY_SPECS[category]
     template, band = template_and_band(category, split, index)
     seed = seed_for(category, split, index, attempt)
     rng = np.random.default_rng(seed)
@@ -143,7 +143,7 @@ def object_name(category: str, template: str, params: dict) -> str:
 
 def make_draw(category: str, split: str, index: int, attempt: int) -> Draw:
     template, band, params, seed = draw_params(category, split, index, attempt)
-    model = SPECS[category].build(template, params)
+    model = CATEGORY_SPECS[category].build(template, params)
     return Draw(category, split, index, attempt, seed, template, band, params, model,
                 object_name(category, template, params))
 
@@ -151,7 +151,7 @@ def make_draw(category: str, split: str, index: int, attempt: int) -> Draw:
 def param_distance(category: str, a: dict, b: dict) -> float:
     """RMS over the category's parameters of the difference normalised by each parameter's span."""
     terms = []
-    for param in SPECS[category].params:
+    for param in CATEGORY_SPECS[category].params:
         lo, hi = param.span()
         if hi > lo:
             terms.append(((a[param.name] - b[param.name]) / (hi - lo)) ** 2)
@@ -284,7 +284,7 @@ def _same_tree(a: Path, b: Path) -> bool:
     return files_a == files_b and all((a / f).read_bytes() == (b / f).read_bytes() for f in files_a)
 
 
-def generate(root: Path, categories=tuple(SPECS), log=print) -> dict[str, list[Accepted]]:
+def generate(root: Path, categories=tuple(CATEGORY_SPECS), log=print) -> dict[str, list[Accepted]]:
     """Regenerate ``categories`` into ``root`` (e.g. ``urdf/objects``).
 
     Objects whose folder already exists are left untouched (after checking that the bytes agree: a

@@ -15,7 +15,7 @@ import numpy as np
 from dexart_lite.objects import CATEGORIES, HALF_SIZES, ROBOT_BASE, all_objects, geometry
 from dexart_lite.objects import report as split_report
 from dexart_lite.objects.feasibility import BUCKET_LIFT, DRIVE_TORQUE, LIFT_FORCE
-from dexart_lite.objects.generate import CHECKS_FILE, DUPLICATE_EPS, GENERATOR_VERSION, SPECS, SPLIT_SIZES
+from dexart_lite.objects.generate import CATEGORY_SPECS, CHECKS_FILE, DUPLICATE_EPS, GENERATOR_VERSION, SPLIT_SIZES
 from dexart_lite.objects.placement import MIN_FRONT, RAND_POS, RAND_YAW_DEG, REACH, SHOULDER_HEIGHT, grasp_x_stats
 
 CONVENTIONS = {  # category -> (part link, joint, axis and sign, q = 0, limits, init, target, grasp point)
@@ -56,7 +56,7 @@ def _range(values, digits: int = 3) -> str:
 
 
 def _param_table(category: str) -> list[str]:
-    spec = SPECS[category]
+    spec = CATEGORY_SPECS[category]
     lines = ["| parameter | unit | A | B | C (held out) | held-out bands (fraction of range) | meaning |",
              "|---|---|---|---|---|---|---|"]
     for p in spec.params:
@@ -113,7 +113,7 @@ def _checks_table(by_cat: dict, checks: dict) -> str:
 def _templates_sections() -> str:
     lines = []
     for c in CATEGORIES:
-        spec = SPECS[c]
+        spec = CATEGORY_SPECS[c]
         lines += [f"### {c}", ""]
         lines += [f"* {t}: {d}" for t, d in spec.templates.items()]
         lines += ["", f"Primary parameters (held-out bands): {', '.join(f'`{p}`' for p in spec.primary)}.", ""]
@@ -124,7 +124,7 @@ def _templates_sections() -> str:
 def _object_tables(by_cat: dict) -> str:
     lines = []
     for c in CATEGORIES:
-        keys = SPECS[c].summary_keys
+        keys = CATEGORY_SPECS[c].summary_keys
         lines += [f"### {c}", "",
                   "| split | # | template | name | " + " | ".join(keys)
                   + " | body / part mass (kg) | friction (N*m) | target (rad) | position (m) |",

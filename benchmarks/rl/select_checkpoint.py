@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexart_lite.rl.evaluate import evaluate_many, split_stats
+from dexart_lite.rl.evaluate import check_phase_seed, evaluate_many, split_stats
 from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
 
 SPLITS = ("seen", "unseen")
@@ -109,7 +109,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--start", nargs="+", type=sweep.parse_spec, required=True,
                         help="SERIES=CHECKPOINT each series started from (its student)")
     parser.add_argument("--select-episodes", type=int, default=5, help="validation episodes per seen object")
-    parser.add_argument("--select-seed", type=int, default=100, help="env seed of the validation episodes")
+    parser.add_argument("--select-seed", type=int, default=100, help="env seed of the validation episodes (one of "
+                        "rl.evaluate.VALIDATION_SEEDS)")
     parser.add_argument("--episodes", type=int, default=10, help="held-out episodes per seen and unseen object")
     parser.add_argument("--seed", type=int, default=1000, help="env seed of the held-out evaluation")
     parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
@@ -122,6 +123,7 @@ def main(argv=None) -> dict:
     if args.select_seed == args.seed:
         raise ValueError(f"--select-seed must differ from the held-out --seed ({args.seed}): the choice must not "
                          "see the episodes it is reported on")
+    check_phase_seed("validation", args.select_seed)  # a test seed never chooses
     starts = dict(args.start)
     labels = list(dict.fromkeys(label for label, _ in args.checkpoints))
     if sorted(starts) != sorted(labels):

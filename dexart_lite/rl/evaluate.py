@@ -193,3 +193,66 @@ def run(args: argparse.Namespace) -> int:
         gif = record_gif(actor_critic, cfg["task"], args.gif, args.split, seed=args.seed, env_kwargs=env_kwargs)
         print(f"wrote {args.gif} ({gif['object_name']}, success {gif['success']})")
     return 0
+
+
+# ---- The one evaluation protocol of every reported figure (experts, students, RL, state diagnostics) ----------
+# Deterministic actions from the true reset, EPISODES_PER_OBJECT episodes per seen and per unseen object, at the env
+# seed of one of two disjoint sets:
+# - validation (VALIDATION_SEEDS): every choice (a checkpoint, a recipe, the seed a zoo entry ships) is made on these,
+#   and on the seen objects alone: unseen objects never steer a choice. New validation evaluations use the first;
+#   1000 is in the set because earlier checkpoint sweeps chose on it, so it can no longer be a test.
+# - test (TEST_SEEDS): each reported cell is evaluated on it once, after every choice is made, and never chooses.
+EPISODES_PER_OBJECT = 10
+VALIDATION_SEEDS = (100, 1000)
+TEST_SEEDS = (7919,)  # a seed no earlier evaluation of the repository used
+
+
+def check_phase_seed(phase: str, seed: int) -> int:
+    """``seed`` if it belongs to ``phase`` ("validation" or "test"); a one-line error naming the phase's seeds
+    otherwise. Every script that chooses calls it with "validation", so a test seed cannot steer a choice."""
+    seeds = {"validation": VALIDATION_SEEDS, "test": TEST_SEEDS}
+    check_choice("phase", phase, tuple(seeds))
+    if seed not in seeds[phase]:
+        raise ValueError(f"env seed {seed} is not a {phase} seed; {phase} seeds: "
+                         f"{', '.join(map(str, seeds[phase]))} (validation chooses, test reports)")
+    return seed
+
+
+def over_seeds(values: list[float]) -> dict:
+    """A cell's figure: the mean over training seeds, its standard error over them (sample std / sqrt(n); 0 for one
+    seed) and the per-seed values beside it."""
+    if not values:
+        raise ValueError("no seed to summarise")
+    n, mean = len(values), sum(values) / len(values)
+    se = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1) / n) if n > 1 else 0.0
+    return {"mean": mean, "se": se, "per_seed": list(values), "seeds": n}
+
+
+def protocol_evaluation(checkpoints: dict[int, str | Path], phase: str = "test", jobs: int = 1,
+                        episodes_per_object: int = EPISODES_PER_OBJECT) -> dict:
+    """Every checkpoint of ``checkpoints`` ({training seed: file}) on the seen and the unseen objects at the first
+    seed of ``phase`` (cached beside each file by ``evaluate_many``): per split the cell (``over_seeds``), and per
+    training seed its success and the object-stratified se of its episodes."""
+    seed = (VALIDATION_SEEDS if phase == "validation" else TEST_SEEDS)[0]
+    check_phase_seed(phase, seed)
+    splits = ("seen", "unseen")
+    results = evaluate_many([(str(c), s) for c in checkpoints.values() for s in splits], episodes_per_object, seed,
+                            jobs)
+    out = {"phase": phase, "env_seed": seed, "episodes_per_object": episodes_per_object}
+    for split in splits:
+        stats = {k: split_stats(results[(str(c), split)]) for k, c in checkpoints.items()}
+        out[split] = {**over_seeds([s["success"] for s in stats.values()]),
+                      "training_seeds": list(checkpoints), "episode_se": [s["se"] for s in stats.values()]}
+    out["frames"] = [results[(str(c), "seen")]["frames"] for c in checkpoints.values()]
+    return out
+
+
+def choose_headline(candidates: list[dict], budget_frames: int) -> dict:
+    """The rule that picks a task's headline: among ``candidates`` (each {"name", "frames": per-seed frames,
+    "validation": {"seen": per-seed success at a validation seed}}) whose every seed trained at most
+    ``budget_frames``, the best mean validation success on the seen objects; a tie goes to fewer frames, then to the
+    name. Reads nothing but those fields: no unseen object and no test seed enters the choice."""
+    within = [c for c in candidates if max(c["frames"]) <= budget_frames]
+    if not within:
+        raise ValueError(f"no candidate within the budget of {budget_frames} frames (of {len(candidates)})")
+    return min(within, key=lambda c: (-over_seeds(c["validation"]["seen"])["mean"], max(c["frames"]), c["name"]))

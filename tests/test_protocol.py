@@ -2,6 +2,7 @@
 results of seen objects alone, and a cell's ± as the standard error over training seeds."""
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -62,3 +63,51 @@ def test_a_script_that_chooses_refuses_a_test_seed(tmp_path, load_benchmark):
     with pytest.raises(ValueError, match=f"env seed {test_seed} is not a validation seed"):
         bench.main([f"s0={tmp_path}/a.pt", "--start", f"s0={tmp_path}/b.pt", "--select-seed", test_seed,
                     "--seed", "1000", "--json", str(tmp_path / "x.json")])
+
+
+def test_the_expert_is_evaluated_on_the_protocols_episodes_and_replays():
+    first = evaluate.evaluate_expert("laptop", "unseen", 1, evaluate.TEST_SEEDS[0])
+    again = evaluate.evaluate_expert("laptop", "unseen", 1, evaluate.TEST_SEEDS[0])
+    assert first["episodes"] == len(first["objects"]) == 6 and first["seed"] == evaluate.TEST_SEEDS[0]
+    assert first["objects"] == again["objects"] and first["success_rate"] > 0.5  # the expert opens unseen laptops
+
+
+def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_its_simulator_steps(
+        tmp_path, monkeypatch, load_benchmark):
+    """Two students (the zoo's faucet policy, copied per seed): the cell is the mean over seeds with their se, every
+    evaluation ran at the test seed with the protocol's episodes, and the steps are the distillation's."""
+    import json
+    import shutil
+
+    from dexart_lite.rl.checkpoint import load_checkpoint
+    from dexart_lite.zoo import resolve as zoo_file
+
+    bench = load_benchmark("final_evaluation")
+    files = {}
+    for seed in (0, 1):
+        files[seed] = tmp_path / f"s{seed}" / "checkpoint.pt"
+        files[seed].parent.mkdir()
+        shutil.copy(zoo_file("zoo:faucet"), files[seed])
+    seen = []
+
+    def fake_evaluation(path, split, episodes, seed, device="cpu"):
+        seen.append((episodes, seed))
+        success = {"s0": 0.8, "s1": 0.6}[Path(path).parent.name] - (0.2 if split == "unseen" else 0.0)
+        return {"task": "faucet", "split": split, "frames": 0, "success_rate": success, "episodes_per_object": episodes,
+                "objects": {"a": {"success_rate": success}, "b": {"success_rate": success}}}
+
+    monkeypatch.setattr(evaluate, "evaluate_checkpoint", fake_evaluation)
+    out = bench.main(["--task", "faucet", "--column", "student", "--checkpoints", f"0={files[0]}", f"1={files[1]}",
+                      "--json", str(tmp_path / "cell.json")])
+    assert set(seen) == {(evaluate.EPISODES_PER_OBJECT, evaluate.TEST_SEEDS[0])} and len(seen) == 4
+    assert out["seen"]["mean"] == pytest.approx(0.7) and out["seen"]["se"] == pytest.approx(0.1)  # std 0.141 / sqrt 2
+    assert out["unseen"]["per_seed"] == pytest.approx([0.6, 0.4])
+    last = load_checkpoint(files[0])["history"][-1]
+    assert out["steps"][0]["demo_frames"] == last["expert_frames"] + last["student_frames"] == out["steps"][0][
+        "steps_in_all"]
+    assert json.loads((tmp_path / "cell.json").read_text())["env_seed"] == evaluate.TEST_SEEDS[0]
+    with pytest.raises(ValueError, match="--task laptop but the checkpoints are of faucet"):
+        bench.main(["--task", "laptop", "--column", "rl", "--checkpoints", f"0={files[0]}",
+                    "--json", str(tmp_path / "x.json")])
+    with pytest.raises(ValueError, match="--checkpoints are needed"):
+        bench.main(["--task", "faucet", "--column", "rl", "--json", str(tmp_path / "x.json")])

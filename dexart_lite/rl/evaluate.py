@@ -41,6 +41,16 @@ def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", e
     where the network acts (None: where it is; one observation at a time, so the CPU is usually fastest).
     ``prepare_env``: called with the unwrapped env before its first reset (a diagnostic's hook, e.g. the tank
     eraser of ``benchmarks/students/tank_ablation.py``)."""
+    if device is not None:
+        actor_critic.to(device)
+    return evaluate_policy(lambda env: policy_function(actor_critic, device), task, split, episodes_per_object,
+                           seed, env_kwargs, prepare_env)
+
+
+def evaluate_policy(make_policy: Callable, task: str, split: str = "seen", episodes_per_object: int = 10,
+                    seed: int = 100, env_kwargs: dict | None = None, prepare_env: Callable | None = None) -> dict:
+    """``evaluate`` of any policy: ``make_policy(env)`` returns the function from observations to actions (a
+    network's, or a scripted expert's, which reads the env it is given)."""
     check_choice("split", split, SPLITS)
     if episodes_per_object < 1:
         raise ValueError(f"episodes_per_object must be >= 1, got {episodes_per_object}")
@@ -54,12 +64,19 @@ def evaluate(actor_critic: ActorValueOperator, task: str, split: str = "seen", e
     rounds = [(None, name) for _ in range(episodes_per_object) for name in names]
     start = time.perf_counter()
     with torch_threads(1):
-        if device is not None:
-            actor_critic.to(device)
-        episodes = run_episodes(policy_function(actor_critic, device), env, rounds)
+        episodes = run_episodes(make_policy(env), env, rounds)
     env.close()
     return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
             **per_object_summary(episodes), "wall_time_s": round(time.perf_counter() - start, 1)}
+
+
+def evaluate_expert(task: str, split: str = "seen", episodes_per_object: int = 10, seed: int = 100) -> dict:
+    """``evaluate`` of the task's scripted expert (privileged: it reads the simulator), on the same episodes a
+    policy is evaluated on at ``seed``."""
+    from dexart_lite.experts import ScriptedPolicy
+
+    result = evaluate_policy(ScriptedPolicy, task, split, episodes_per_object, seed)
+    return {**result, "checkpoint": None, "frames": 0, "device": "cpu"}
 
 
 def evaluate_splits(policy, cfg, out: Path) -> list[dict]:

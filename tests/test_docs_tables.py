@@ -5,6 +5,9 @@ from pathlib import Path
 
 import pytest
 
+from dexart_lite.rl.evaluate import TEST_SEEDS
+
+TEST_SEED = TEST_SEEDS[0]
 SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "rl" / "curriculum_table.py"
 
 
@@ -80,14 +83,42 @@ def test_the_targets_table_marks_each_split_against_its_target(tmp_path, monkeyp
     paired = tmp_path / "paired.json"
     entry = {"task": "laptop", "recipe": "student_anchored_release_flat", "seeds": [0, 1], "rl_frames": [756000, 760000],
              "seen": {"student": 0.62, "rl": 0.83}, "unseen": {"student": 0.70, "rl": 0.76}}
-    paired.write_text(json.dumps({"summary": [entry], "episodes_per_object": 10}))
+    weaker = {**entry, "recipe": "student_anchored", "seen": {"student": 0.62, "rl": 0.70}}
+
+    def runs(e: dict) -> list[dict]:  # per seed: the figures the rule chooses on
+        return [{"task": "laptop", "recipe": e["recipe"], "seed": k,
+                 "rl": {s: {"success": e[s]["rl"]} for s in ("seen", "unseen")}} for k in (0, 1)]
+
+    def write(*entries: dict) -> None:
+        paired.write_text(json.dumps({"summary": list(entries), "runs": [r for e in entries for r in runs(e)],
+                                      "episodes_per_object": 10, "eval_seed": 1000}))
+
+    write(weaker, entry)
     monkeypatch.setattr(tables, "PAIRED", paired)
-    headline = {**tables.HEADLINE["laptop"], "rl": "laptop_cloud_student_anchored_release_flat.json"}
-    monkeypatch.setattr(tables, "HEADLINE", {"laptop": headline})
-    row = tables.targets_table().splitlines()[-1]
+    assert tables.headline("laptop")["rl"]["name"] == "laptop_cloud_student_anchored_release_flat.json"
+    row = tables.targets_table().splitlines()[-2]  # laptop's row (the tasks' order: faucet, bucket, laptop, toilet)
     assert "0.83 / 0.76 (`student_anchored_release_flat`, 756k / 760k)" in row
     assert "0.81 / 0.41: met / met" in row  # DexArt's laptop
     assert "0.72 / 0.80: met / missed" in row  # 0.76 < 0.70 + 0.10
-    entry["rl_frames"] = [2_100_000, 760000]  # past the 2M budget: not among the best within it
-    paired.write_text(json.dumps({"summary": [entry], "episodes_per_object": 10}))
-    assert tables.targets_table().splitlines()[-1].split(" | ")[-2] == "-"
+    entry["rl_frames"] = [2_100_000, 760000]  # past the 2M budget: neither the headline nor among the best within it
+    write(weaker, entry)
+    assert tables.headline("laptop")["rl"]["name"] == "laptop_cloud_student_anchored.json"
+    assert "(`student_anchored`, 756k / 760k)" in tables.targets_table().splitlines()[-2]
+    paired.write_text(paired.read_text().replace('"eval_seed": 1000', f'"eval_seed": {TEST_SEED}'))
+    with pytest.raises(ValueError, match=f"env seed {TEST_SEED} is not a validation seed"):
+        tables.headline("laptop")  # test-seed results never choose
+
+
+def test_a_headline_cell_shows_its_test_evaluation_only_for_the_chosen_candidate(tmp_path, monkeypatch):
+    import json
+
+    tables = load()
+    monkeypatch.setattr(tables, "TEST", tmp_path)
+    chosen = tables.headline("laptop")["rl"]
+    assert "(validation)" in tables.cell("laptop", "rl", chosen, "x")
+    final = {"source": chosen["name"], "seen": {"mean": 0.9, "se": 0.02}, "unseen": {"mean": 0.8, "se": 0.05}}
+    (tmp_path / "laptop_rl.json").write_text(json.dumps(final))
+    assert tables.cell("laptop", "rl", chosen, "x").startswith(
+        "[0.90 ± 0.02 / 0.80 ± 0.05](benchmarks/results/test/laptop_rl.json) (test seed)")
+    (tmp_path / "laptop_rl.json").write_text(json.dumps({**final, "source": "another_run_set.json"}))
+    assert "(validation)" in tables.cell("laptop", "rl", chosen, "x")  # a stale final evaluation is not shown

@@ -98,7 +98,7 @@ def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_it
 
     monkeypatch.setattr(evaluate, "evaluate_checkpoint", fake_evaluation)
     out = bench.main(["--task", "faucet", "--column", "student", "--checkpoints", f"0={files[0]}", f"1={files[1]}",
-                      "--json", str(tmp_path / "cell.json")])
+                      "--source", "faucet_students.json", "--json", str(tmp_path / "cell.json")])
     assert set(seen) == {(evaluate.EPISODES_PER_OBJECT, evaluate.TEST_SEEDS[0])} and len(seen) == 4
     assert out["seen"]["mean"] == pytest.approx(0.7) and out["seen"]["se"] == pytest.approx(0.1)  # std 0.141 / sqrt 2
     assert out["unseen"]["per_seed"] == pytest.approx([0.6, 0.4])
@@ -106,8 +106,9 @@ def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_it
     assert out["steps"][0]["demo_frames"] == last["expert_frames"] + last["student_frames"] == out["steps"][0][
         "steps_in_all"]
     assert json.loads((tmp_path / "cell.json").read_text())["env_seed"] == evaluate.TEST_SEEDS[0]
+    assert out["source"] == "faucet_students.json"
     with pytest.raises(ValueError, match="--task laptop but the checkpoints are of faucet"):
-        bench.main(["--task", "laptop", "--column", "rl", "--checkpoints", f"0={files[0]}",
+        bench.main(["--task", "laptop", "--column", "rl", "--checkpoints", f"0={files[0]}", "--source", "x.json",
                     "--json", str(tmp_path / "x.json")])
-    with pytest.raises(ValueError, match="--checkpoints are needed"):
+    with pytest.raises(ValueError, match="--checkpoints and --source are needed"):
         bench.main(["--task", "faucet", "--column", "rl", "--json", str(tmp_path / "x.json")])

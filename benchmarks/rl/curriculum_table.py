@@ -17,8 +17,12 @@ Seven tables, each between ``<!-- NAME -->`` and ``<!-- /NAME -->`` markers in t
 * ``targets`` (docs/results/rl_from_experts.md): each task's headline cells against the targets: DexArt's Table 2
   and the students + 0.10 (point clouds, held out), >= 0.8 seen within 1M frames (the state diagnostic), and the
   best held-out success of any run set within 2M frames.
-* ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, each cell from its JSON
-  (``HEADLINE``), with DexArt's Table 2 (no pretraining) beside them.
+* ``rl-headline`` (README.md): task × scripted expert / distilled point-cloud student / RL, with DexArt's Table 2
+  (no pretraining) beside them. Which run set fills a cell is chosen by a rule, not by hand (``headline``:
+  ``dexart_lite.rl.evaluate.choose_headline``, the best validation success on seen objects within the frame
+  budget); a cell shows its test-seed evaluation (``benchmarks/results/test/<task>_<column>.json``, written by
+  ``benchmarks/rl/final_evaluation.py`` for that very choice) where there is one, else its validation figure,
+  marked so.
 * ``zoo`` (README.md): the policies shipped in ``dexart_lite/zoo/`` and the success each reproduces (its manifest,
   written by ``benchmarks/students/zoo_build.py`` together with ``benchmarks/results/students/zoo.json``).
 * ``scaling`` (docs/results/performance.md): collection and plain env steps against workers on each machine measured
@@ -31,41 +35,22 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 from pathlib import Path
 
 import numpy as np
+
+from dexart_lite.rl.evaluate import check_phase_seed, choose_headline, over_seeds
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmarks" / "results"
 DOC = ROOT / "docs" / "results" / "rl_from_experts.md"
 PAIRED = RESULTS / "rl" / "paired_eval.json"  # benchmarks/rl/paired_eval.py
 README = ROOT / "README.md"
+TEST = RESULTS / "test"  # benchmarks/rl/final_evaluation.py: each reported cell once on the test seed
+TASKS = ("faucet", "bucket", "laptop", "toilet")
 PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (0.81, 0.41), "toilet": (0.71, 0.46)}
-# the evidence of each headline cell: expert (solve JSONs, seen and unseen), the best committed point-cloud student
-# (its JSON under benchmarks/results; "student_label": how it differs from the other tasks' students),
-# and the best committed RL run set on point clouds (None: none yet)
-# and the best committed RL run set on the state observation (the diagnostic: object pose given, no perception)
-HEADLINE = {
-    "faucet": {"student": "students/distill_faucet_episodes2x.json", "rl": "faucet_cloud_student_anchored_floor_flat_b16k.json", "rl_state": "faucet_state_dagger8_wide_flat.json"},
-    # bucket: the student is the overhand expert's (the RL run set started from the hook expert's students)
-    "bucket": {"student": "students/distill_bucket_overhand.json", "student_label": "from the overhand expert",
-               "rl": "bucket_cloud_student_anchored_floor_reverse_std03.json", "rl_state": None},
-    # laptop RL: the floor under the anchor with 4x batches run to the 2M-frame budget (docs item 39; item 19's
-    # released anchor, 0.83 / 0.76 at ~760k, is level with it within the standard errors)
-    "laptop": {"student": "students/distill_laptop_episodes2x_noise.json", "rl": "laptop_cloud_student_anchored_floor_flat_b16k.json",
-               "rl_state": "laptop_state_dagger_wide.json"},
-    # toilet: the DAgger student that keeps only its successful episodes (drop_failed; the headline settings
-    # otherwise, curriculum_runs.py's `successonly` variant), 3 seeds on the same evaluation as the others; RL: the
-    # reverse curriculum at std 0.05 from those students, the best held out against them (docs item 36; the released
-    # anchor at std 0.05, item 35, holds seen toilets and loses unseen ones)
-    "toilet": {"student": "rl/curriculum/toilet_cloud_student_successonly.json",
-               "student_label": "DAgger on successful episodes only",
-               "rl": "toilet_cloud_student_successonly_anchored_floor_reverse_d17_std05.json",
-               "rl_state": None},
-}
-
-
 def load(path: Path) -> dict:
     return json.loads(path.read_text())
 
@@ -134,48 +119,118 @@ def clone_table() -> str:
     return "\n".join(rows)
 
 
-def rl_cell(name: str | None) -> str:
-    """Seen / unseen success of a committed RL run set, linked to its JSON, with its frames per seed."""
-    if not name:
-        return "not yet ([why](docs/results/rl_from_experts.md))"
-    rl = load(RESULTS / "rl" / "curriculum" / name)
-    return (f"[{rl['seen_success']:.2f} / {rl['unseen_success']:.2f}](benchmarks/results/rl/curriculum/{name}) "
-            f"(`{rl['recipe']}`, {rl['frames'] / 1000:.0f}k frames, {len(rl['per_seed'])} seeds)")
-
-
 def paired_summary() -> list[dict]:
     """The run sets' held-out re-evaluations (``paired_eval.json``'s ``summary``; empty before it is measured)."""
     return load(PAIRED)["summary"] if PAIRED.exists() else []
 
 
-def paired_entry(rl: dict | None) -> dict | None:
-    """The held-out re-evaluation of a run set (its JSON ``rl``), or None where there is none."""
-    return next((e for e in paired_summary() if rl and (e["task"], e["recipe"]) == (rl["task"], rl["recipe"])), None)
+def student_candidates(task: str) -> list[dict]:
+    """Every committed student set of ``task`` (``bench_distill`` and ``curriculum_runs --students-only`` JSONs) with
+    its own evaluation, made at a validation seed: {"name" (its JSON under benchmarks/results), "frames" (distillation
+    steps per seed), "validation": per-seed seen and unseen success}."""
+    out = []
+    for path in [*sorted((RESULTS / "students").glob(f"distill_{task}*.json")),
+                 *sorted((RESULTS / "rl" / "curriculum").glob(f"{task}_cloud_student*.json"))]:
+        result = load(path)
+        if "recipe" in result or result.get("task") != task or not result.get("per_seed"):
+            continue  # an RL run set, or not a student set of this task
+        check_phase_seed("validation", result.get("eval_seed", 100))  # distill's default evaluation seed is 100
+        seeds = result["per_seed"]
+        frames = [r.get("frames", r.get("expert_frames", 0) + r.get("student_frames", 0)) for r in seeds]
+        out.append({"name": str(path.relative_to(RESULTS)), "frames": frames,
+                    "validation": {s: [r[f"{s}_success"] for r in seeds] for s in ("seen", "unseen")}})
+    return out
 
 
-def cloud_rl_cell(name: str | None) -> str:
-    """The point-cloud RL cell: its paired re-evaluation beside the students it started from where there is one
-    (``paired_eval.json``, more episodes per object than the run's own evaluation), else ``rl_cell``."""
-    rl = load(RESULTS / "rl" / "curriculum" / name) if name else None
-    entry = paired_entry(rl)
-    if entry is None:
-        return rl_cell(name)
-    frames = np.mean(entry["rl_frames"])
-    return (f"[{entry['seen']['rl']:.2f} / {entry['unseen']['rl']:.2f}](benchmarks/results/rl/paired_eval.json) "
-            f"from students at {entry['seen']['student']:.2f} / {entry['unseen']['student']:.2f} (`{rl['recipe']}`, "
-            f"{frames / 1000:.0f}k frames, {len(entry['seeds'])} seeds, {load(PAIRED)['episodes_per_object']} eps per object)")
+def rl_candidates(task: str) -> list[dict]:
+    """The point-cloud RL run sets of ``task`` re-evaluated side by side with their students (``paired_eval.json``,
+    10 episodes per object at a validation seed): name (the run set's JSON), RL frames per seed, per-seed success."""
+    if not PAIRED.exists():
+        return []
+    paired = load(PAIRED)
+    check_phase_seed("validation", paired["eval_seed"])
+    out = []
+    for e in paired["summary"]:
+        if e["task"] == task:
+            seeds = [r for r in paired["runs"] if (r["task"], r["recipe"]) == (task, e["recipe"])]
+            out.append({"name": f"{task}_cloud_{e['recipe']}.json", "frames": e["rl_frames"], "entry": e,
+                        "validation": {s: [r["rl"][s]["success"] for r in seeds] for s in ("seen", "unseen")}})
+    return out
+
+
+def state_candidates(task: str) -> list[dict]:
+    """The state-observation RL run sets of ``task`` with their own evaluation (at a validation seed)."""
+    out = []
+    for path in sorted((RESULTS / "rl" / "curriculum").glob(f"{task}_state_*.json")):
+        result = load(path)
+        if "recipe" not in result or not result.get("per_seed"):
+            continue
+        check_phase_seed("validation", result["eval_seed"])
+        seeds = result["per_seed"]
+        out.append({"name": path.name, "frames": [r["frames"] for r in seeds],
+                    "validation": {s: [r[f"{s}_success"] for r in seeds] for s in ("seen", "unseen")}})
+    return out
+
+
+def headline(task: str) -> dict:
+    """The rule's choice for each column of ``task`` (None where there is no candidate): the student set, the
+    point-cloud RL run set within ``FRAME_BUDGET`` and the state run set within ``STATE_TARGET``'s frames."""
+    def pick(candidates: list[dict], budget: float) -> dict | None:
+        return choose_headline(candidates, budget) if any(max(c["frames"]) <= budget for c in candidates) else None
+
+    return {"student": pick(student_candidates(task), float("inf")), "rl": pick(rl_candidates(task), FRAME_BUDGET),
+            "rl_state": pick(state_candidates(task), STATE_TARGET[1])}
+
+
+def test_result(task: str, column: str, source: str | None) -> dict | None:
+    """The final evaluation of a cell (``benchmarks/results/test/<task>_<column>.json``) if it evaluated ``source``
+    (the chosen candidate; the expert has none), else None."""
+    path = TEST / f"{task}_{column}.json"
+    if not path.exists():
+        return None
+    result = load(path)
+    return result if result.get("source") == source else None
+
+
+def cell(task: str, column: str, chosen: dict | None, link: str) -> str:
+    """``seen / unseen`` of a chosen candidate: its test-seed evaluation (mean ± se over seeds) where there is one,
+    else its validation figure, marked "validation"."""
+    if chosen is None:
+        return "not yet ([why](docs/results/rl_from_experts.md))"
+    final = test_result(task, column, chosen["name"])
+    if final is not None:
+        values = " / ".join(f"{final[s]['mean']:.2f} ± {final[s]['se']:.2f}" for s in ("seen", "unseen"))
+        return f"[{values}](benchmarks/results/test/{task}_{column}.json) (test seed)"
+    values = " / ".join(f"{over_seeds(chosen['validation'][s])['mean']:.2f}" for s in ("seen", "unseen"))
+    return f"[{values}]({link}) (validation)"
 
 
 def headline_table() -> str:
     rows = ["| task | scripted expert (privileged) | distilled point-cloud student | RL on point clouds | "
             "RL on the state (diagnostic) | DexArt Table 2 (RL, no pretraining) |", "|---|---|---|---|---|---|"]
-    for task, cells in HEADLINE.items():
-        expert = [load(RESULTS / "experts" / f"solve_{task}_{split}.json")["success_rate"] for split in ("seen", "unseen")]
-        student = load(RESULTS / cells["student"])
-        label = f" ({cells['student_label']})" if "student_label" in cells else ""
-        rows.append(f"| {task} | [{expert[0]:.2f} / {expert[1]:.2f}](benchmarks/results/experts/solve_{task}_seen.json) "
-                    f"| [{student['seen_success']:.2f} / {student['unseen_success']:.2f}](benchmarks/results/{cells['student']}){label} "
-                    f"| {cloud_rl_cell(cells['rl'])} | {rl_cell(cells['rl_state'])} "
+    for task in TASKS:
+        chosen = headline(task)
+        final = test_result(task, "expert", None)
+        if final is not None:
+            expert = (f"[{final['seen']['mean']:.2f} / {final['unseen']['mean']:.2f}]"
+                      f"(benchmarks/results/test/{task}_expert.json) (test seed)")
+        else:
+            solved = [load(RESULTS / "experts" / f"solve_{task}_{s}.json")["success_rate"] for s in ("seen", "unseen")]
+            expert = f"[{solved[0]:.2f} / {solved[1]:.2f}](benchmarks/results/experts/solve_{task}_seen.json)"
+        student, rl, state = chosen["student"], chosen["rl"], chosen["rl_state"]
+        student_cell = cell(task, "student", student, f"benchmarks/results/{student['name']}" if student else "")
+        if student:
+            student_cell += f" `{Path(student['name']).stem}`, {len(student['frames'])} seeds"
+        rl_cell_text = cell(task, "rl", rl, "benchmarks/results/rl/paired_eval.json")
+        if rl:
+            frames = np.mean(rl["frames"])
+            rl_cell_text += (f" `{rl['entry']['recipe']}`, {frames / 1000:.0f}k frames, {len(rl['frames'])} seeds, from "
+                             f"students at {rl['entry']['seen']['student']:.2f} / {rl['entry']['unseen']['student']:.2f}")
+        state_cell = cell(task, "rl_state", state, f"benchmarks/results/rl/curriculum/{state['name']}" if state else "")
+        if state:
+            state_cell += f" `{load(RESULTS / 'rl' / 'curriculum' / state['name'])['recipe']}`, " \
+                          f"{np.mean(state['frames']) / 1000:.0f}k frames, {len(state['frames'])} seeds"
+        rows.append(f"| {task} | {expert} | {student_cell} | {rl_cell_text} | {state_cell} "
                     f"| {PAPER_NO_PRETRAIN[task][0]:.2f} / {PAPER_NO_PRETRAIN[task][1]:.2f} |")
     return "\n".join(rows)
 
@@ -201,11 +256,12 @@ def targets_table() -> str:
     rows = ["| task | RL on point clouds, held out (run set, frames / seed) | DexArt Table 2 | its students + 0.10 "
             "(same resets) | the README's student cell + 0.10 | best of any run set within 2M frames | "
             "RL on the state: seen >= 0.8 within 1M frames |", "|---|---|---|---|---|---|---|"]
-    for task, cells in HEADLINE.items():
-        rl = load(RESULTS / "rl" / "curriculum" / cells["rl"]) if cells["rl"] else None
-        entry = paired_entry(rl)
-        student = load(RESULTS / cells["student"])
-        readme_student = (student["seen_success"] + TARGET_MARGIN, student["unseen_success"] + TARGET_MARGIN)
+    for task in TASKS:
+        chosen = headline(task)
+        entry = chosen["rl"]["entry"] if chosen["rl"] else None
+        student = chosen["student"]
+        readme_student = tuple(over_seeds(student["validation"][s])["mean"] + TARGET_MARGIN for s in ("seen", "unseen")) \
+            if student else (math.nan, math.nan)
         within = [e for e in paired if e["task"] == task and max(e["rl_frames"]) <= FRAME_BUDGET]
         best = " / ".join(
             f"{max(e[split]['rl'] for e in within):.2f} (`{max(within, key=lambda e: e[split]['rl'])['recipe']}`)"
@@ -218,8 +274,8 @@ def targets_table() -> str:
             own = (entry["seen"]["student"] + TARGET_MARGIN, entry["unseen"]["student"] + TARGET_MARGIN)
             cloud = [f"{values[0]:.2f} / {values[1]:.2f} (`{entry['recipe']}`, {frames})",
                      verdict(values, PAPER_NO_PRETRAIN[task]), verdict(values, own), verdict(values, readme_student)]
-        if cells["rl_state"]:
-            state = load(RESULTS / "rl" / "curriculum" / cells["rl_state"])
+        if chosen["rl_state"]:
+            state = load(RESULTS / "rl" / "curriculum" / chosen["rl_state"]["name"])
             ok = state["seen_success"] >= STATE_TARGET[0] and max(r["frames"] for r in state["per_seed"]) <= STATE_TARGET[1]
             state_cell = (f"{state['seen_success']:.2f} at {state['frames'] / 1000:.0f}k (`{state['recipe']}`): "
                           + ("met" if ok else "missed"))
@@ -284,7 +340,14 @@ def stale_tables() -> list[str]:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help="replace the tables in their files")
+    parser.add_argument("--choices", action="store_true", help="print the headline rule's choice per task and column "
+                        "(the --source of benchmarks/rl/final_evaluation.py) and nothing else")
     args = parser.parse_args(argv)
+    if args.choices:
+        for task in TASKS:
+            for column, chosen in headline(task).items():
+                print(f"{task} {column}: {chosen['name'] if chosen else '-'}")
+        return
     tables = {name: (path, make()) for name, (path, make) in TABLES.items()}
     for name, (path, table) in tables.items():
         print(f"{name} ({path}):\n{table}\n")

@@ -2,6 +2,7 @@
 
     python benchmarks/rl/final_evaluation.py --task laptop --column expert
     python benchmarks/rl/final_evaluation.py --task laptop --column rl --jobs 2 \\
+        --source laptop_cloud_student_anchored_floor_flat_b16k.json \\
         --checkpoints 0=b3693a9:benchmarks/results/rl/curriculum/checkpoints/laptop_cloud_student_anchored_floor_flat_b16k_s0/checkpoint.pt \\
                       1=b3693a9:benchmarks/results/rl/curriculum/checkpoints/laptop_cloud_student_anchored_floor_flat_b16k_s1/checkpoint.pt
 
@@ -11,7 +12,8 @@ over its training seeds, with the per-seed values beside it (the expert has no t
 episodes' object-stratified one). Checkpoints are files or ``REV:path`` in git history (extracted under ``--cache``,
 as ``checkpoint_sweep.py`` does); every evaluation is cached beside its checkpoint.
 
-Written to ``benchmarks/results/test/<task>_<column>.json``: task, column, the protocol (env seed, episodes per
+Written to ``benchmarks/results/test/<task>_<column>.json``: task, column, source (the candidate the headline rule
+chose, whose checkpoints these are: the README's table shows this file only while the rule still chooses it), the protocol (env seed, episodes per
 object), per split the cell (mean, se, per_seed, training_seeds, episode_se), the checkpoints, and the simulator
 steps behind the cell per training seed: ``frames`` (the learner's own online frames), ``guide_frames`` (steps the
 scripted guide took before handing over, in guided starts), ``demo_frames`` (demonstrations and DAgger rounds, the
@@ -67,6 +69,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--column", required=True, choices=COLUMNS)
     parser.add_argument("--checkpoints", nargs="*", default=[], help="SEED=CHECKPOINT per training seed (a file or "
                         "REV:path in git history); not for the expert")
+    parser.add_argument("--source", default=None, help="the candidate these checkpoints are, as the headline rule names "
+                        "it (`python benchmarks/rl/curriculum_table.py --choices` prints each task's); not for the expert")
     parser.add_argument("--students", nargs="*", default=[], help="SEED=CHECKPOINT: the students the RL checkpoints "
                         "started from, counted in the cell's demonstration steps (not evaluated)")
     parser.add_argument("--episodes", type=int, default=EPISODES_PER_OBJECT, help="per seen and unseen object")
@@ -74,10 +78,10 @@ def main(argv=None) -> dict:
     parser.add_argument("--cache", type=Path, default=Path("runs/final_evaluation"), help="where git checkpoints go")
     parser.add_argument("--json", type=Path, default=None, help=f"default {RESULTS.name}/<task>_<column>.json")
     args = parser.parse_args(argv)
-    if (args.column == "expert") == bool(args.checkpoints):
-        raise ValueError("--checkpoints are needed for every column but the expert's, and only there")
+    if (args.column == "expert") == bool(args.checkpoints) or (args.column == "expert") == bool(args.source):
+        raise ValueError("--checkpoints and --source are needed for every column but the expert's, and only there")
     path = args.json or RESULTS / f"{args.task}_{args.column}.json"
-    out = {"task": args.task, "column": args.column, "env_seed": TEST_SEEDS[0], "episodes_per_object": args.episodes}
+    out = {"task": args.task, "column": args.column, "source": args.source, "env_seed": TEST_SEEDS[0], "episodes_per_object": args.episodes}
     if args.column == "expert":
         out.update(expert_cell(args.task, args.episodes))
     else:

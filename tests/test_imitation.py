@@ -339,6 +339,9 @@ def test_an_interrupted_distillation_resumes_to_the_uninterrupted_student(tiny_r
     state = torch.load(run_dir / "resume.pt", weights_only=True)  # as if saved before these fields existed:
     del state["config"]["beta_min"], state["config"]["drop_failed"]  # their defaults are what that run had
     torch.save(state, run_dir / "resume.pt")
+    # a run killed outright (no clean-up, as a terminated pool worker) leaves its scratch buffer behind
+    (run_dir / "buffer").mkdir()
+    (run_dir / "buffer" / "point_cloud.memmap").write_bytes(b"stale")
     resumed = distill(dataclasses.replace(cfg, resume=True))
     whole = load_checkpoint(tiny_run[1]["checkpoint"])
     again = load_checkpoint(resumed["checkpoint"])

@@ -489,6 +489,9 @@ class StudentRun:
                      "action_dim": self.env.action_space.shape[0], "head": cfg.head_widths(), "normalize": cfg.normalize}
         self.actor_critic, self.ema, self.aux_head = build_student(cfg, self.dims, demos)
         self.student_net = self.ema.module if self.ema is not None else self.actor_critic
+        # the buffer is scratch space, refilled from the demonstrations and rounds on a resume: a run killed outright
+        # (SIGKILL, a pool worker terminated, the machine gone) leaves its files behind, which the storage refuses
+        shutil.rmtree(out / "buffer", ignore_errors=True)
         self.buffer = ReplayBuffer(storage=LazyMemmapStorage(cfg.max_samples, scratch_dir=str(out / "buffer")))
         self.history: list[dict] = []
         self.frames = {"expert": manifest["samples"], "student": 0}

@@ -227,11 +227,11 @@ def _distill(cfg, out: Path) -> dict:
 def _reinforce(cfg, out: Path) -> dict:
     """A PPO or SAC run, continued from its checkpoint if it has one; what ``run.json`` keeps. ``wall_time_s`` is
     this invocation's (training and evaluation); the history's ``wall_s`` restarts at each continuation."""
-    from dexart_lite.rl import ppo, sac
+    from dexart_lite.rl.ppo import CHECKPOINT
+    from dexart_lite.rl.learners import learner_of
 
-    continued = (out / ppo.CHECKPOINT).exists()
-    learner = sac if isinstance(cfg, sac.SACConfig) else ppo
-    result = learner.train(dataclasses.replace(cfg, resume=continued))
+    continued = (out / CHECKPOINT).exists()
+    result = learner_of(cfg).train(dataclasses.replace(cfg, resume=continued))
     return {**_eval_record(result["eval"]), "frames": result["frames"], "wall_time_s": result["wall_time_s"],
             "continued": continued, "demos": result["demos"], "checkpoint": result["checkpoint"],
             "history": result["history"]}

@@ -25,8 +25,8 @@ from dexart_lite.demos import collect_demos, load_demos
 from dexart_lite.imitation.distill import (DistillConfig, collect_dagger, dagger_beta, distill, same_settings,
                                            successful_episodes, train_student,
                                           validate)
-from dexart_lite.models.actor_critic import action_log_std, make_actor_critic, trunk_of
-from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, architecture, load_checkpoint
+from dexart_lite.models.actor_critic import action_log_std, architecture, make_actor_critic, trunk_of
+from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rollout import per_object_summary, run_episodes
 from dexart_lite.utils import parse_overrides

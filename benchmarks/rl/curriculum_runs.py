@@ -51,7 +51,8 @@ import torch
 import dexart_lite
 from dexart_lite.objects import list_objects
 from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig
-from dexart_lite.rl import ppo, sac
+from dexart_lite.rl import ppo
+from dexart_lite.rl.learners import LEARNERS, learner_name
 from dexart_lite.study import run_arm
 from dexart_lite.utils import (benchmark_results, fast_mode, machine_info, process_pool, provenance, sigterm_interrupts,
                                write_json)
@@ -288,7 +289,9 @@ def student_config(task: str, seed: int, args, recipe: str) -> DistillConfig:
     return DistillConfig(**overrides)
 
 
-def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> ppo.PPOConfig | sac.SACConfig:
+def config(task: str, obs: str, recipe: str, seed: int, frames: int, args):
+    """The run of one seed: the fast preset's ``PPOConfig`` plus the recipe's fields, or the config of the recipe's
+    ``algo`` (its own defaults)."""
     overrides = dict(RECIPES[recipe], task=task, obs=obs, seed=seed, frames=frames,
                      eval_episodes=args.eval_episodes, max_minutes=args.max_minutes, progress=False,
                      threads=1 if args.jobs > 1 else 0, out=str(Path(args.runs) / f"{task}_{obs}_{recipe}_s{seed}"))
@@ -296,11 +299,12 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args) -> pp
         if obs != "cloud":
             raise ValueError(f"recipe {recipe} starts from a point-cloud student: needs --obs cloud")
         overrides["init_from"] = str(Path(student_config(task, seed, args, recipe).out) / CHECKPOINT)
-    if overrides.pop("algo", "ppo") == "sac":
+    algo = overrides.pop("algo", "ppo")
+    if algo == "sac":
         if fast_mode():
             overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
                              max_episode_steps=30, eval_episodes=1, num_points=64, curriculum_demos=2, buffer=1000)
-        return sac.SACConfig(**overrides)
+        return LEARNERS[algo].config(**overrides)
     overrides["workers"] = args.workers
     overrides["device"] = args.device
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -538,7 +542,7 @@ def main(argv=None) -> dict:
                                argv, args.note, args.jobs)
     summary = {"task": args.task, "obs": args.obs, "recipe": args.recipe, "settings": RECIPES[args.recipe],
                **({"student": dataclasses.asdict(students[0]) | {"seed": None, "out": None}} if students[0] else {}),
-               "preset": "fast" if isinstance(cfgs[0], ppo.PPOConfig) else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
+               "preset": "fast" if learner_name(cfgs[0]) == "ppo" else "SACConfig defaults", "eval_episodes_per_object": cfgs[0].eval_episodes, "eval_seed": cfgs[0].eval_seed,
                "per_seed": [], **provenance(__file__, argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
                "jobs": args.jobs, "workers": args.workers, "device": args.device,

@@ -51,11 +51,11 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.demos import Recorder, collect_demos, episode_list, load_demos, read_manifest
 from dexart_lite.imitation.report import plot_rounds, write_report
-from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, encoder_label,
-                                             encoder_of, input_key, make_actor_critic, trunk_of)
+from dexart_lite.models.actor_critic import (ENCODERS, HIDDEN_KEY, IMAGE_KEY, POINTS_KEY, STATE_KEY, architecture,
+                                             encoder_label, encoder_of, input_key, make_actor_critic, trunk_of)
 from dexart_lite.models.pointnet import load_encoder, save_encoder
 from dexart_lite.registration import SPECS, TASKS, state_slices
-from dexart_lite.rl.checkpoint import architecture, policy_function, save_checkpoint
+from dexart_lite.rl.checkpoint import policy_function, save_checkpoint
 from dexart_lite.rl.env import torch_threads
 from dexart_lite.rl.evaluate import evaluate_splits, record_gif
 from dexart_lite.rollout import Policy, per_object_summary, run_episodes

@@ -199,6 +199,12 @@ class Acting(TensorDictModuleBase):
         return tensordict
 
 
+def architecture(dims: dict) -> dict:
+    """``make_actor_critic`` keywords recorded in a checkpoint's ``dims`` (absent: DexArt's)."""
+    return {"head": tuple(dims.get("head", HEAD_HIDDEN)), "normalize": bool(dims.get("normalize", False)),
+            "state_hidden": int(dims.get("state_hidden", STATE_HIDDEN))}
+
+
 def input_key(encoder: str) -> str:
     """The observation an encoder reads: the point cloud, or the depth image for ``depth_cnn``."""
     return IMAGE_KEY if encoder == "depth_cnn" else POINTS_KEY

@@ -16,9 +16,8 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ActorValueOperator
 
-from dexart_lite.models.actor_critic import (HEAD_HIDDEN, IMAGE_KEY, POINTS_KEY, STATE_HIDDEN, STATE_KEY, Acting,
-                                             make_actor_critic)
-from dexart_lite.models.soft_actor_critic import make_sac_actor
+from dexart_lite.models.actor_critic import IMAGE_KEY, POINTS_KEY, STATE_KEY, Acting
+from dexart_lite.rl.learners import learner_of
 
 FILE_FORMAT = "dexart_lite.ppo"
 FILE_VERSION = 1
@@ -64,12 +63,6 @@ def load_checkpoint(path: str | os.PathLike) -> dict:
     return payload
 
 
-def architecture(dims: dict) -> dict:
-    """``make_actor_critic`` keywords recorded in a checkpoint's ``dims`` (absent: DexArt's)."""
-    return {"head": tuple(dims.get("head", HEAD_HIDDEN)), "normalize": bool(dims.get("normalize", False)),
-            "state_hidden": int(dims.get("state_hidden", STATE_HIDDEN))}
-
-
 def observation_kwargs(payload: dict) -> dict:
     """The env keywords that give a checkpoint's network the observation it was trained on: its cloud
     size, the imagined points (on unless switched off) and, for the 2-D baseline, the depth image; and
@@ -91,15 +84,10 @@ def network_encoder(cfg: dict) -> str:
 
 
 def actor_critic_from_checkpoint(payload: dict, path: str | os.PathLike = "checkpoint") -> ActorValueOperator:
-    """The policy network described by ``payload["dims"]`` with its weights loaded strictly: the PPO / distill
-    actor-critic, or the tanh-Gaussian actor of an off-policy run (``config["algo"] == "sac"``, rl/sac.py)."""
+    """The policy network described by ``payload["dims"]`` with its weights loaded strictly: the one its learner
+    builds (``rl/learners.py``: the PPO / distill actor-critic, or the off-policy run's tanh-Gaussian actor)."""
     dims, cfg = payload["dims"], payload["config"]
-    if cfg.get("algo") == "sac":
-        actor_critic = make_sac_actor(dims["state_dim"], dims["action_dim"], network_encoder(cfg),
-                                      tuple(dims["head"]), dims["state_hidden"])
-    else:
-        actor_critic = make_actor_critic(dims["state_dim"], dims["action_dim"], network_encoder(cfg),
-                                         **architecture(dims))
+    actor_critic = learner_of(cfg).policy(dims, network_encoder(cfg))
     try:
         actor_critic.load_state_dict(payload["model"], strict=True)
     except RuntimeError as err:

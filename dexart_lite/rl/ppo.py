@@ -40,14 +40,13 @@ from tqdm import tqdm
 from dexart_lite import objects as objects_lib
 from dexart_lite.demos import load_demos
 from dexart_lite.models.actor_critic import (HEAD_HIDDEN, POINTS_KEY, STATE_HIDDEN, STATE_KEY, Acting,
-                                             action_log_std, encoder_of, make_actor_critic, set_action_log_std,
-                                             trunk_of)
+                                             action_log_std, architecture, encoder_of, make_actor_critic,
+                                             set_action_log_std, trunk_of)
 from dexart_lite.models.pointnet import ENCODER_SIZES, PointNetEncoder, load_encoder
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
 from dexart_lite.rl.curriculum import Curriculum, CurriculumConfig, find_demos, guide_demos, send_level
-from dexart_lite.rl.checkpoint import (architecture, checkpoint_path, load_checkpoint, network_encoder, policy_function,
-                                      save_checkpoint)
+from dexart_lite.rl.checkpoint import checkpoint_path, load_checkpoint, network_encoder, policy_function, save_checkpoint
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.sil import SelfImitationBuffer, sil_loss
 from dexart_lite.utils import (DEVICES, check_choice, optimizer_to, release_freed_memory, resident_mb, resolve_device,

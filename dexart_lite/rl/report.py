@@ -12,6 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from dexart_lite.rl.evaluate import markdown_table  # noqa: E402
+from dexart_lite.rl.learners import learner_name  # noqa: E402
 
 
 def network_label(cfg: dict) -> str:
@@ -52,7 +53,7 @@ def write_report(path: str | Path, cfg: dict, history: list[dict], evals: list[d
     collect = sum(h.get("collect_s", 0.0) for h in history)
     update = sum(h.get("update_s", 0.0) for h in history)
     frames = last.get("frames", 0)
-    if cfg.get("algo", "ppo") == "sac":
+    if learner_name(cfg) == "sac":
         algo = "SAC"
         settings = (f"- SAC: lr {cfg['lr']}, batch {cfg['batch']}, {cfg['utd']} updates per frame after "
                     f"{cfg['warmup_frames']:,} frames, {cfg['critics']} critics (LayerNorm: {cfg['layer_norm']}), tau "

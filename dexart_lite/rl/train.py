@@ -15,20 +15,23 @@ import argparse
 from dataclasses import fields
 
 from dexart_lite.cli import add_config_arguments
-from dexart_lite.rl import ppo, sac
+from dexart_lite.rl import ppo
+from dexart_lite.rl.learners import LEARNERS
 from dexart_lite.utils import check_choice
 
-ALGOS = ("ppo", "sac")
-PPO_ONLY = sorted({f.name for f in fields(ppo.PPOConfig)} - {f.name for f in fields(sac.SACConfig)})
-SAC_ONLY = sorted({f.name for f in fields(sac.SACConfig)} - {f.name for f in fields(ppo.PPOConfig)} - {"algo"})
+ALGOS = tuple(LEARNERS)
+PPO_FIELDS, SAC_FIELDS = ({f.name for f in fields(LEARNERS[name].config)} for name in ("ppo", "sac"))
+PPO_ONLY = sorted(PPO_FIELDS - SAC_FIELDS)
+SAC_ONLY = sorted(SAC_FIELDS - PPO_FIELDS - {"algo"})
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", default="ppo", help="ppo (DexArt's; --preset and the PPO flags) or sac (off-policy "
                         "SAC with demonstrations in the replay buffer, rl/sac.py; its own defaults)")
     ppo.add_arguments(parser)  # every PPOConfig field and --preset; defaults None (the preset's / SACConfig's apply)
-    add_config_arguments(parser.add_argument_group("sac only"), sac.SACConfig, names=SAC_ONLY, given_only=True,
-                         default_label="sac default", overrides=False)  # --set: ppo.add_arguments added it
+    # the flags only SACConfig has (--set: ppo.add_arguments added it)
+    add_config_arguments(parser.add_argument_group("sac only"), LEARNERS["sac"].config, names=SAC_ONLY,
+                         given_only=True, default_label="sac default", overrides=False)
 
 
 def given(args: argparse.Namespace, names: list[str]) -> list[str]:
@@ -37,15 +40,13 @@ def given(args: argparse.Namespace, names: list[str]) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     check_choice("algorithm (--algo)", args.algo, ALGOS)
-    if args.algo == "ppo":
-        if given(args, SAC_ONLY):
-            raise ValueError(f"{', '.join(given(args, SAC_ONLY))}: SAC options; add --algo sac or drop them")
-        result = ppo.train(ppo.config_from_args(args))
-    else:
-        wrong = given(args, PPO_ONLY) + (["--preset"] if args.preset != "faithful" else [])
-        if wrong:
-            raise ValueError(f"{', '.join(wrong)}: PPO options that --algo sac does not use")
-        result = sac.train(sac.config_from_args(args))
+    if args.algo == "ppo" and given(args, SAC_ONLY):
+        raise ValueError(f"{', '.join(given(args, SAC_ONLY))}: SAC options; add --algo sac or drop them")
+    wrong = given(args, PPO_ONLY) + (["--preset"] if args.preset != "faithful" else [])
+    if args.algo == "sac" and wrong:
+        raise ValueError(f"{', '.join(wrong)}: PPO options that --algo sac does not use")
+    learner = LEARNERS[args.algo]
+    result = learner.train(learner.config_from_args(args))
     print(f"checkpoint: {result['checkpoint']}\nreport:     {result['report']}\ncurve:      {result['curve']}")
     for split, res in result["eval"].items():
         print(f"{split} success: {res['success_rate']:.2f} ({res['episodes']} episodes)")

@@ -227,7 +227,7 @@ def _distill(cfg, out: Path) -> dict:
 def _reinforce(cfg, out: Path) -> dict:
     """A PPO or SAC run, continued from its checkpoint if it has one; what ``run.json`` keeps. ``wall_time_s`` is
     this invocation's (training and evaluation); the history's ``wall_s`` restarts at each continuation."""
-    from dexart_lite.rl.ppo import CHECKPOINT
+    from dexart_lite.rl.common import CHECKPOINT
     from dexart_lite.rl.learners import learner_of
 
     continued = (out / CHECKPOINT).exists()

@@ -266,11 +266,12 @@ def test_guide_demonstrations_are_labelled_by_the_clean_expert_and_reproducible(
 
 def test_bc_warmstart_fits_the_demonstrations():
     from dexart_lite.models.actor_critic import make_actor_critic
+    from dexart_lite.rl.warmstart import bc_warmstart
 
     samples, _ = guide_demos("laptop", "seen", 1, 0.1, 0, {**STATE, "object_names": ["laptop_11cbb00f39"]})
     torch.manual_seed(0)
     net = make_actor_critic(samples["observation"].shape[-1], 22, "none", normalize=True)
-    losses = ppo.bc_warmstart(net, samples, epochs=8, seed=0)
+    losses = bc_warmstart(net, samples, epochs=8, seed=0)
     assert losses[-1] < 0.5 * losses[0]
 
 
@@ -451,7 +452,7 @@ def test_value_error_at_the_switch_uses_the_discounted_return_of_complete_episod
     counted). Trajectory 1: an episode from the true reset ends at step 1 (G_0 = 1.5, V = 2.0 -> error 0.5)."""
     from tensordict import TensorDict
 
-    from dexart_lite.rl.ppo import value_error_at_start
+    from dexart_lite.rl.common import value_error_at_start
 
     done = torch.tensor([[0, 0, 1, 0, 0, 0], [0, 1, 0, 0, 0, 0]], dtype=torch.bool)
     first = torch.tensor([[1, 0, 0, 1, 0, 0], [1, 0, 1, 0, 0, 0]], dtype=torch.bool)

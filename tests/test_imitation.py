@@ -426,18 +426,18 @@ def test_ppo_anchor_is_the_kl_to_the_student(tiny_run, demos_dir, tmp_path):
     Gaussian formula by hand for a shifted mean, is logged after the warm-up only, and needs --init-from."""
     from types import SimpleNamespace
 
-    from dexart_lite.rl import ppo
+    from dexart_lite.rl.anchor import anchor_kl, anchor_weight
 
     net = actor_critic_from_checkpoint(load_checkpoint(tiny_run[1]["checkpoint"]))
     samples = load_demos(demos_dir)[:8].clone()
     with torch.no_grad():
         out = net.get_policy_operator()(samples.select("point_cloud", "observation").clone())
         samples["anchor_loc"], samples["anchor_scale"] = out["loc"].clone(), out["scale"].clone()
-        learner = SimpleNamespace(actor_critic=net)
-        assert float(ppo.anchor_kl(learner, samples)) == pytest.approx(0.0, abs=1e-6)
+        policy = net.get_policy_operator()
+        assert float(anchor_kl(policy, samples)) == pytest.approx(0.0, abs=1e-6)
         samples["anchor_loc"][:, 3] += 0.1  # one action dimension's mean 0.1 away: KL = 0.1^2 / (2 sigma^2)
         sigma = float(out["scale"][0, 3])
-        assert float(ppo.anchor_kl(learner, samples)) == pytest.approx(0.01 / (2 * sigma ** 2), rel=1e-4)
+        assert float(anchor_kl(policy, samples)) == pytest.approx(0.01 / (2 * sigma ** 2), rel=1e-4)
     rows = ppo_from_student(tiny_run, tmp_path / "anchor", frames=300, critic_warmup=1, anchor_coef=1.0,
                             anchor_decay=0.5)["history"]
     assert rows[0]["kl_init"] == 0.0 and all(r["kl_init"] > 0 for r in rows[1:])
@@ -448,7 +448,7 @@ def test_ppo_anchor_is_the_kl_to_the_student(tiny_run, demos_dir, tmp_path):
         ppo_from_student(tiny_run, tmp_path / "y", anchor_coef=1.0, anchor_decay=0.0)
     # a floor stops the decay: 1, 0.5, then held at 0.3 instead of 0.25, 0.125
     floored = SimpleNamespace(anchor_coef=1.0, anchor_decay=0.5, anchor_floor=0.3, critic_warmup=1)
-    assert [ppo.anchor_weight(floored, b) for b in range(5)] == [0.0, 1.0, 0.5, 0.3, 0.3]
+    assert [anchor_weight(floored, b) for b in range(5)] == [0.0, 1.0, 0.5, 0.3, 0.3]
     with pytest.raises(ValueError, match=r"anchor_floor must be in \[0, anchor_coef=1.0\]"):
         ppo_from_student(tiny_run, tmp_path / "z", anchor_coef=1.0, anchor_decay=0.9, anchor_floor=2.0)
 

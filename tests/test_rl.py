@@ -28,6 +28,7 @@ from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 from dexart_lite.rl.env import EpisodeInfo, env_dims, make_env
 from dexart_lite.rl.evaluate import evaluate
+from dexart_lite.rl.warmstart import initial_weights
 from dexart_lite.utils import release_freed_memory, resident_mb
 
 # tiny: 32 observed points (+96 imagined), 20-step episodes, a few hundred frames per batch
@@ -431,7 +432,7 @@ def test_state_only_diagnostic_never_renders_and_trains_an_mlp(tmp_path, monkeyp
     with pytest.raises(ValueError, match="comma-separated positive widths"):
         ppo.validate(tiny_config(tmp_path, head="64,0"))
     with pytest.raises(ValueError, match="brings its own architecture"):
-        ppo.initial_weights(tiny_config(tmp_path, head="128,128", init_from=result["checkpoint"]), 47, 22)
+        initial_weights(tiny_config(tmp_path, head="128,128", init_from=result["checkpoint"]), 47, 22)
 
 
 def test_observation_normalisation_is_fixed_from_a_rollout_of_the_initial_policy(tmp_path):

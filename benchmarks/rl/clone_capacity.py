@@ -3,7 +3,7 @@ train``, per network width, on the state-only observation; success from the true
 
     python benchmarks/rl/clone_capacity.py --task laptop --arch dexart wide --seeds 0 1 --jobs 2
 
-The warm start of the curriculum recipes (``ppo.clone_the_guide``: ``--demo-episodes`` noisy expert episodes
+The warm start of the curriculum recipes (``warmstart.clone_the_guide``: ``--demo-episodes`` noisy expert episodes
 per training object, ``--bc-warmstart`` epochs of MSE on their clean labels with inputs normalised from them,
 then ``--dagger-rounds`` in which the clone drives and the expert labels what it visits) on networks of two
 sizes: ``dexart`` is DexArt's (a 64-unit state MLP in the trunk, 64x64 policy and value heads), ``wide`` a
@@ -34,6 +34,7 @@ from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import network_encoder
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.evaluate import evaluate
+from dexart_lite.rl.warmstart import clone_the_guide
 from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sigterm_interrupts,
                                write_json)
 
@@ -56,7 +57,7 @@ def clone(task: str, obs: str, arch: str, seed: int, args) -> dict:
     probe.close()
     actor_critic = make_actor_critic(state_dim, action_dim, network_encoder(asdict(cfg)), cfg.init_log_std,
                                      head=cfg.head_widths(), normalize=True, state_hidden=cfg.state_hidden)
-    samples, info = ppo.clone_the_guide(cfg, actor_critic)
+    samples, info = clone_the_guide(cfg, actor_critic)
     episodes = 1 if fast_mode() else args.eval_episodes
     success = {split: evaluate(actor_critic, task, split, episodes, 100, cfg.env_kwargs())["success_rate"]
                for split in ("seen", "unseen")}

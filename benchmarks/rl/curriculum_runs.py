@@ -75,9 +75,9 @@ DEMO = {"demo_episodes": 4, "demo_noise": 0.1, "bc_warmstart": 30, "critic_warmu
 WIDE = {"head": "256,256", "state_hidden": 256}
 GUARDED = {**DEMO, "demo_episodes": 8, "bc_warmstart": 50, "critic_warmup": 5, "bc_coef": 1.0, "bc_decay": 0.99,
            "critic_detach": True, "critic_lr": 1e-3, "lr": 1e-4, "target_kl": 0.02}
-# anchored: the `finetune` preset of rl/ppo.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out of the
-# trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop students on both
-# splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
+# anchored: the `finetune` preset of rl/ppo_config.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out
+# of the trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop students on
+# both splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
 ANCHORED = {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
             "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True}
 RECIPES = {

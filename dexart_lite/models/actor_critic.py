@@ -160,6 +160,18 @@ def make_actor_critic(state_dim: int, action_dim: int = 22, encoder: str = "smal
     return ActorValueOperator(trunk_module, policy_head, value_head)
 
 
+class DetachedInput(nn.Module):
+    """``net`` applied to a detached input: its own parameters learn, nothing upstream does (PPO's
+    ``--critic-detach``: the value MLP on a detached copy of the trunk's features)."""
+
+    def __init__(self, net: nn.Module):
+        super().__init__()
+        self.net = net
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x.detach())
+
+
 class Acting(TensorDictModuleBase):
     """``actor_critic(td)`` for acting, on the same modules (the weights are shared, not copied).
 

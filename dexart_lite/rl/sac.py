@@ -40,16 +40,17 @@ from tqdm import tqdm
 from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY
 from dexart_lite.models.soft_actor_critic import make_qvalue, make_sac_actor, observation_keys, sac_trunk
 from dexart_lite.registration import OBSERVATIONS, TASKS
+from dexart_lite.rl import common
 from dexart_lite.rl.checkpoint import load_checkpoint, network_encoder, save_checkpoint
+from dexart_lite.rl.common import (CHECKPOINT, batch_stats, curriculum_config, evaluate_and_report, make_curriculum,
+                                   progress_bar)
 from dexart_lite.rl.curriculum import guide_demos, send_level
 from dexart_lite.rl.env import env_dims, make_env
-from dexart_lite.rl.ppo import (PPOConfig, batch_stats, curriculum_config, evaluate_and_report, make_curriculum,
-                                progress_bar)
+from dexart_lite.rl.ppo_config import PPOConfig
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.utils import (DEVICES, check_choice, optimizer_to, release_freed_memory, resident_mb, resolve_device,
                                to_cpu)
 
-CHECKPOINT = "checkpoint.pt"
 BUFFER_DIR = "buffer"
 LOSS_KEYS = ("loss_actor", "loss_qvalue", "loss_alpha", "alpha", "entropy")
 _PPO_HELP = {f.name: f.metadata.get("help", "") for f in fields(PPOConfig)}
@@ -128,10 +129,10 @@ class SACConfig:
     algo: str = field(default="sac", metadata={"help": "the learner (recorded in the checkpoint)"})
 
     def head_widths(self) -> tuple[int, ...]:
-        return PPOConfig.head_widths(self)  # same parsing and error as PPO's --head
+        return common.head_widths(self.head)  # same parsing and error as PPO's --head
 
     def env_kwargs(self) -> dict:
-        return PPOConfig.env_kwargs(self)  # same env keywords as PPO (hand: the 22-D joints action)
+        return common.env_kwargs(self)  # same env keywords as PPO (hand: the 22-D joints action)
 
     hand = "joints"  # read by env_kwargs; not a field: SAC acts on the full hand
 

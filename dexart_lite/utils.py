@@ -77,50 +77,19 @@ def benchmark_results(script_file: str):
 
 
 def sibling_script(script_file: str, name: str):
-    """The script ``<name>.py`` beside ``script_file`` (a benchmark's ``__file__``) as a module: benchmarks are
-    scripts, not a package, so one that builds on another loads it by path."""
+    """The script ``<name>.py`` beside ``script_file`` (a benchmark's ``__file__``), or else the benchmarks' shared
+    module one folder up (``benchmarks/_harness.py``), as a module: benchmarks are scripts, not a package, so one
+    that builds on another loads it by path."""
     import importlib.util
     from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location(name, Path(script_file).with_name(f"{name}.py"))
+    path = Path(script_file).resolve().with_name(f"{name}.py")
+    if not path.is_file() and path.parent.with_name(f"{name}.py").is_file():
+        path = path.parent.with_name(f"{name}.py")
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
-
-
-def run_in_checkout(root, code: str, *args: str) -> dict:
-    """Run Python ``code`` with the ``dexart_lite`` found under ``root`` (a checkout), one thread, in a
-    fresh interpreter; return the JSON it prints last. Benchmarks use it to time this checkout and an
-    earlier commit (``git_worktree``) side by side, alternately, in one run."""
-    import json
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    root = Path(root).resolve()
-    # An editable install could shadow the checkout's package: check which one the interpreter imports.
-    check = (f"import dexart_lite, pathlib\nassert pathlib.Path(dexart_lite.__file__).resolve().is_relative_to("
-             f"{str(root)!r}), 'dexart_lite imported from ' + dexart_lite.__file__\n")
-    env = dict(os.environ, PYTHONPATH=str(root), OMP_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, "-c", check + code, *args], env=env, cwd=root, capture_output=True,
-                         text=True, check=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
-
-
-@contextlib.contextmanager
-def git_worktree(repo, ref: str):
-    """``with git_worktree(repo, ref) as root:`` a temporary checkout of commit ``ref``, removed afterwards."""
-    import subprocess
-    import tempfile
-    from pathlib import Path
-
-    root = Path(tempfile.mkdtemp(prefix="dexart_lite_ref_"))
-    subprocess.run(["git", "-C", str(repo), "worktree", "add", "--detach", str(root), ref], check=True,
-                   capture_output=True)
-    try:
-        yield root
-    finally:
-        subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(root)], capture_output=True)
 
 
 def resident_mb() -> float:

@@ -18,12 +18,13 @@ def _private_cache(tmp_path_factory):
 
 @pytest.fixture
 def load_benchmark():
-    """``load_benchmark("bench_distill")`` -> the module of ``benchmarks/students/bench_distill.py`` (the benchmarks
-    are scripts, not a package, so tests load them by path)."""
+    """``load_benchmark("bench_distill")`` -> the module of ``benchmarks/students/bench_distill.py``, and
+    ``load_benchmark("_harness")`` the scripts' shared ``benchmarks/_harness.py`` (the benchmarks are scripts, not a
+    package, so tests load them by path)."""
     folder = Path(__file__).resolve().parent.parent / "benchmarks"
 
     def load(name: str):
-        path, = folder.glob(f"*/{name}.py")  # benchmarks/<theme>/<name>.py
+        path, = [*folder.glob(f"*/{name}.py"), *folder.glob(f"{name}.py")]  # benchmarks/[<theme>/]<name>.py
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)

@@ -30,9 +30,10 @@ import psutil
 import dexart_lite
 from dexart_lite.envs import make
 from dexart_lite.rollout import parallel_step_rates, random_actions, step_rate
-from dexart_lite.utils import git_worktree, provenance, run_in_checkout, write_json
+from dexart_lite.utils import provenance, sibling_script, write_json
 
 ROOT = Path(__file__).resolve().parents[2]
+harness = sibling_script(__file__, "_harness")  # benchmarks/_harness.py: runs of another commit
 # The 1-process loop of ``rollout.step_rate`` as a script, with only the API every commit has (``make``, step).
 MEASURE = """
 import json, sys, time
@@ -111,12 +112,13 @@ def main(argv=None) -> dict:
         two = two_process_rate(task, args.steps) if args.two_process else None
         tasks[task] = {"steps_per_s": full_rate, "steps_per_s_2proc": two, "vs_physics_only": physics_rate_ / full_rate}
     if args.ref:
-        with git_worktree(ROOT, args.ref) as ref_root:
+        with harness.git_worktree(ROOT, args.ref) as ref_root:
             for task in args.tasks:
                 rates = {"this": [], "ref": []}
                 for _ in range(args.rounds):
                     for key, root in (("this", ROOT), ("ref", ref_root)):
-                        rates[key].append(run_in_checkout(root, MEASURE, task, str(args.steps))["steps_per_s"])
+                        rate = harness.run_in_checkout(root, MEASURE, task, str(args.steps))["steps_per_s"]
+                        rates[key].append(rate)
                 this, ref = statistics.median(rates["this"]), statistics.median(rates["ref"])
                 tasks[task].update({"steps_per_s_subprocess": this, "ref_steps_per_s": ref, "vs_ref": this / ref})
     result = {"tasks": tasks, "reset_rss_growth_mb": reset_rss_growth_mb(args.resets) if args.resets else None,

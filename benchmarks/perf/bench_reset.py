@@ -18,9 +18,10 @@ import subprocess
 import time
 from pathlib import Path
 
-from dexart_lite.utils import git_worktree, provenance, run_in_checkout
+from dexart_lite.utils import provenance, sibling_script
 
 ROOT = Path(__file__).resolve().parents[2]
+harness = sibling_script(__file__, "_harness")  # benchmarks/_harness.py: runs of another commit
 TASKS = ("faucet", "bucket", "laptop", "toilet")
 
 MEASURE = """
@@ -39,7 +40,7 @@ print(json.dumps({"ms_per_reset": (time.perf_counter() - start) / resets * 1e3})
 
 def measure(package_root: Path, task: str, resets: int) -> float:
     """ms per reset of ``task`` with the ``dexart_lite`` found under ``package_root``."""
-    return run_in_checkout(package_root, MEASURE, task, str(resets))["ms_per_reset"]
+    return harness.run_in_checkout(package_root, MEASURE, task, str(resets))["ms_per_reset"]
 
 
 def main(argv=None) -> dict:
@@ -53,7 +54,7 @@ def main(argv=None) -> dict:
     roots = {"this": ROOT}
     start = time.time()
     results = {}
-    with git_worktree(ROOT, args.ref) if args.ref else contextlib.nullcontext() as ref_root:
+    with harness.git_worktree(ROOT, args.ref) if args.ref else contextlib.nullcontext() as ref_root:
         if ref_root is not None:
             roots["ref"] = ref_root
         for task in args.tasks:

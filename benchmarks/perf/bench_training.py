@@ -56,11 +56,12 @@ from dexart_lite.models.actor_critic import Acting, encoder_of, make_actor_criti
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl import ppo
 from dexart_lite.rl.env import make_env, torch_threads
-from dexart_lite.utils import fast_mode, git_worktree, provenance, run_in_checkout, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
 
 MINIBATCH = 500
 POINTS = 512 + 96
 ROOT = Path(__file__).resolve().parents[2]
+harness = sibling_script(__file__, "_harness")  # benchmarks/_harness.py: runs of another commit
 # ``training_iteration`` as a script, with only the API every commit since 2f696c9 has (``ppo.preset``,
 # ``ppo.train``, the history's ``collect_s`` / ``update_s``), for ``--ref``: run in each checkout.
 ITERATION = """
@@ -286,11 +287,11 @@ def iteration_vs_ref(ref: str, task: str, batches: int, rounds: int,
     in fresh subprocesses (``ITERATION``), ``rounds`` times each; medians and their ratio. ``batches``
     includes the first, untimed one."""
     fps: dict[str, list[float]] = {"this": [], "ref": []}
-    with git_worktree(ROOT, ref) as ref_root:
+    with harness.git_worktree(ROOT, ref) as ref_root:
         for _ in range(rounds):
             for key, root in (("this", ROOT), ("ref", ref_root)):
                 args = (task, str(batches), str(frames_per_batch), str(workers))
-                fps[key].append(run_in_checkout(root, ITERATION, *args)["iteration_fps"])
+                fps[key].append(harness.run_in_checkout(root, ITERATION, *args)["iteration_fps"])
     this, other = statistics.median(fps["this"]), statistics.median(fps["ref"])
     return {"ref": ref, "ref_rounds": rounds, "ref_frames_per_batch": frames_per_batch,
             "ref_workers": workers, "iteration_fps_subprocess": this, "ref_iteration_fps": other,

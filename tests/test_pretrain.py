@@ -74,6 +74,17 @@ def test_dam_shapes_labels_and_manifest(dam):
     assert set(datasets.read_manifest(dam / "unseen")["parts"]) == {"test"}
 
 
+def test_no_unseen_object_enters_a_pretraining_part_that_trains_or_chooses(dam, objects_data):
+    """The parts pretraining fits (train) and chooses on (val) hold seen objects alone; unseen ones are only tested.
+    Read from the datasets' manifests, for both kinds of dataset."""
+    for root in (dam, objects_data):
+        for split, parts in (("seen", {"train", "val"}), ("unseen", {"test"})):
+            manifest = datasets.read_manifest(root / split)
+            assert set(manifest["parts"]) == parts
+            for record in manifest["objects"]:
+                assert record["name"] in {o.name for o in list_objects(record["category"], split)}, (root, split, record)
+
+
 def test_dam_is_deterministic_per_seed(tmp_path):
     def generate(name: str, seed: int) -> datasets.PointCloudSet:
         cfg = datasets.DamConfig(task=TASK, split="seen", samples_per_object=3, out=str(tmp_path / name), seed=seed,

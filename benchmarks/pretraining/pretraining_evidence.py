@@ -1,4 +1,4 @@
-"""The evidence runs of issue 6: segmentation mIoU per task, PPO from segmentation pretraining vs.
+"""The evidence for segmentation pretraining: segmentation mIoU per task, PPO from segmentation pretraining vs.
 from scratch, and the PPO-fine-tuned encoder put back under the segmentation head.
 
     # 1. per task: DAM data (seen + unseen), segmentation pretraining, mIoU on seen / unseen objects

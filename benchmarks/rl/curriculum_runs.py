@@ -51,7 +51,7 @@ import torch
 import dexart_lite
 from dexart_lite.objects import list_objects
 from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig
-from dexart_lite.rl import ppo
+from dexart_lite.rl import ppo, recipes
 from dexart_lite.rl.learners import LEARNERS, learner_name
 from dexart_lite.study import run_arm
 from dexart_lite.utils import (benchmark_results, fast_mode, machine_info, process_pool, provenance, sigterm_interrupts,
@@ -78,8 +78,7 @@ GUARDED = {**DEMO, "demo_episodes": 8, "bc_warmstart": 50, "critic_warmup": 5, "
 # anchored: the `finetune` preset of rl/ppo_config.py (lr 3e-5, KL stop 0.01, 5 critic-only batches, critic kept out
 # of the trunk) with a KL penalty to the student (anchor_coef 1), the setting that raised earlier laptop students on
 # both splits (benchmarks/results/rl/finetune_laptop_anchor.json), from the headline student, no BC term
-ANCHORED = {**{k: v for k, v in ppo.PRESETS["finetune"].items() if k != "eval_episodes"},
-            "anchor_coef": 1.0, "obs_norm_steps": 0, "student": True}
+ANCHORED = {**{k: v for k, v in recipes.ANCHORED.items() if k != "eval_episodes"}, "student": True}
 RECIPES = {
     "ppo": {},
     "bc": dict(DEMO),  # the same warm start and BC term, every episode from the true reset
@@ -131,24 +130,24 @@ for _name in ("dagger_wide", "student_anchored_release"):
 # student_anchored_floor_flat: student_anchored_release_flat with the anchor's decay stopped at a tenth of its start
 # (anchor_floor 0.1, reached after ~45 batches, ~180k frames past the warm-up). Let go entirely, the faucet policies
 # were within noise of their students at ~440k frames (held out; one seed above, one below) and below both at ~580k,
-# while the KL to the student grew from 0.6 to 1.3 nats per step (docs item 20); the constant anchor (weight 1) held
-# the students at KL ~0.02 and added nothing (item 11). Does a weaker anchor that is never let go stop the drift?
+# while the KL to the student grew from 0.6 to 1.3 nats per step; the constant anchor (weight 1) held
+# the students at KL ~0.02 and added nothing. Does a weaker anchor that is never let go stop the drift?
 RECIPES["student_anchored_floor_flat"] = {**RECIPES["student_anchored_release_flat"], "anchor_floor": 0.1}
 # student_anchored_floor_flat_b16k: the same against the gradient noise: 4x the frames per update (16,000: ~90 faucet
 # episodes, ~8 per seen faucet, instead of ~22) and 4x the samples per gradient step (minibatch 2,000), with the same
 # trust region per update (KL stop 0.01) and the anchor's schedule unchanged per frame (x 0.95^4 per batch; critic
 # warm-up 2 batches, 32k frames, instead of 5 x 4k). Adam's step size does not shrink with a noisier gradient, and
 # the 4k updates stop at the KL limit after 4-10 steps of 500 samples, so each moves the policy by as much whatever
-# it learnt; held-out checkpoints of one run swing by up to 0.2 (docs item 29). Per frame the policy moves ~4x less,
-# each step on a 4x less noisy gradient (faucets: docs item 30; laptops, from item 31's students: item 32)
-BIG_BATCH = {"frames_per_batch": 16_000, "minibatch": 2_000, "anchor_decay": round(0.95 ** 4, 4), "critic_warmup": 2}
+# it learnt; held-out checkpoints of one run swing by up to 0.2. Per frame the policy moves ~4x less,
+# each step on a 4x less noisy gradient (docs/results/rl_from_experts.md)
+BIG_BATCH = recipes.BIG_BATCH
 RECIPES["student_anchored_floor_flat_b16k"] = {**RECIPES["student_anchored_floor_flat"], **BIG_BATCH}
 # student_anchored_floor: the same floor on DexArt's own reward, for toilets: there the flat bonus took the students
-# down as the anchor let go (item 21), while on DexArt's reward the released anchor gained a little (item 12)
+# down as the anchor let go, while on DexArt's reward the released anchor gained a little
 RECIPES["student_anchored_floor"] = {**RECIPES["student_anchored_release"], "anchor_floor": 0.1}
 # <recipe>_b16k on the other tasks: BIG_BATCH alone added to each task's own best point-cloud recipe, so that the
-# comparison with it isolates the batch size (laptop: the released anchor on the flat bonus, docs item 19, run as
-# item 31; toilet: the floor on DexArt's reward, item 23, run as item 33)
+# comparison with it isolates the batch size (laptop: the released anchor on the flat bonus;
+# toilet: the floor on DexArt's reward)
 RECIPES["student_anchored_release_flat_b16k"] = {**RECIPES["student_anchored_release_flat"], **BIG_BATCH}
 RECIPES["student_anchored_floor_b16k"] = {**RECIPES["student_anchored_floor"], **BIG_BATCH}
 # student_anchored_floor_reverse: the same from the experts' states, for buckets, whose students never lift a bucket
@@ -159,7 +158,7 @@ RECIPES["student_anchored_floor_reverse"] = {**RECIPES["student_anchored_floor"]
                                              "curriculum_demos": 11, "curriculum_step": 5}
 # student_anchored_floor_reverse_eager: the same with the frontier moved back after ONE success from it (Salimans & Chen
 # move theirs once 20 % of the rollouts from it succeed). RFCL's 3 in a row suits SAC's high success from the frontier;
-# at PPO's 0.2-0.5 from the bucket frontier (item 25) 3 in a row needs ~10-25 tries, and the frontier stalled near 140
+# at PPO's 0.2-0.5 from the bucket frontier 3 in a row needs ~10-25 tries, and the frontier stalled near 140
 RECIPES["student_anchored_floor_reverse_eager"] = {**RECIPES["student_anchored_floor_reverse"],
                                                    "curriculum_successes": 1}
 # student_anchored_floor_reverse_std03: the same with an exploration std of 0.03 instead of 0.1 (log std -3.5). The
@@ -172,20 +171,14 @@ RECIPES["student_anchored_floor_reverse_eager"] = {**RECIPES["student_anchored_f
 # std 0.1 (PPO's ratio clip, 0.2, is unchanged and so binds sooner in action units)
 
 
-def at_std(recipe: dict, std: float) -> dict:
-    """``recipe`` (an anchored one at exploration std 0.1) at exploration std ``std``: the anchor's weight and floor
-    multiplied by (std / 0.1)^2, the KL early stop divided by it (see student_anchored_floor_reverse_std03)."""
-    ratio2 = (std / 0.1) ** 2
-    return {**recipe, "init_log_std": round(math.log(std), 4), "anchor_coef": recipe["anchor_coef"] * ratio2,
-            **({"anchor_floor": recipe["anchor_floor"] * ratio2} if "anchor_floor" in recipe else {}),
-            "target_kl": round(recipe["target_kl"] / ratio2, 4)}
+at_std = recipes.at_std  # the anchor and the KL stop rescaled to another exploration std
 
 
 RECIPES["student_anchored_floor_reverse_std03"] = at_std(RECIPES["student_anchored_floor_reverse"], 0.03)
 # student_anchored_floor_reverse_std03_backoff: the same with a frontier that also moves forward 5 steps after 6
 # failures in a row from it (Florensa et al. keep starts at 0.1-0.9 success; RFCL only moves back). At std 0.03 the
-# collected success fell from 0.6 to 0.2 within 150k frames and nothing brought it back (docs item 27); 3 successes
-# in a row back, 6 failures forward move it equally often where success from the frontier is ~0.35. Run (item 28):
+# collected success fell from 0.6 to 0.2 within 150k frames and nothing brought it back; 3 successes
+# in a row back, 6 failures forward move it equally often where success from the frontier is ~0.35. Run:
 # collected success 0.35-0.45 instead of 0.2-0.3, held out 0.11 / 0.06, level with std03's 0.10 / 0.05
 RECIPES["student_anchored_floor_reverse_std03_backoff"] = {**RECIPES["student_anchored_floor_reverse_std03"],
                                                             "curriculum_backoff": 6}
@@ -241,13 +234,13 @@ for _variant in ("betafloor", "successonly"):
 RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_release"], "student": "successonly"}
 # student_successonly_anchored_release_std05: the same with an exploration std of 0.05 instead of 0.1. From these
 # students the std-0.1 collections open ~0.5 of the toilets against 0.67 deterministic, and the released anchor lost
-# -0.10 / -0.07 held out (docs item 34): PPO improved the noisy policy, not the deterministic one. The anchor's weight
+# -0.10 / -0.07 held out: PPO improved the noisy policy, not the deterministic one. The anchor's weight
 # is multiplied by (0.05 / 0.1)^2 and the KL early stop divided by it, as for std03 above
 RECIPES["student_successonly_anchored_release_std05"] = at_std(RECIPES["student_successonly_anchored_release"], 0.05)
 # student_successonly_anchored_floor_reverse_d17_std05: from the same students, the toilet recipe that gained most
 # from the older students (the reverse curriculum over one demonstration per seen toilet with the anchor's floor,
-# docs item 29: +0.12 / +0.05 at 864k frames) at exploration std 0.05, where the released anchor held seen toilets
-# (item 35); the floor keeps a tenth of the anchor's weight instead of letting it go
+# +0.12 / +0.05 at 864k frames) at exploration std 0.05, where the released anchor held seen toilets
+#; the floor keeps a tenth of the anchor's weight instead of letting it go
 RECIPES["student_successonly_anchored_floor_reverse_d17_std05"] = at_std(
     RECIPES["student_successonly_anchored_floor_reverse_d17"], 0.05)
 # the faucets' and laptops' headline point-cloud recipes from successonly students: their DAgger collections succeed

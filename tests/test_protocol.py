@@ -79,6 +79,7 @@ def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_it
     import json
     import shutil
 
+    from dexart_lite.objects import list_objects
     from dexart_lite.rl.checkpoint import load_checkpoint
     from dexart_lite.zoo import resolve as zoo_file
 
@@ -94,7 +95,7 @@ def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_it
         seen.append((episodes, seed))
         success = {"s0": 0.8, "s1": 0.6}[Path(path).parent.name] - (0.2 if split == "unseen" else 0.0)
         return {"task": "faucet", "split": split, "frames": 0, "success_rate": success, "episodes_per_object": episodes,
-                "objects": {"a": {"success_rate": success}, "b": {"success_rate": success}}}
+                "objects": {o.name: {"success_rate": success} for o in list_objects("faucet", split)}}
 
     monkeypatch.setattr(evaluate, "evaluate_checkpoint", fake_evaluation)
     out = bench.main(["--task", "faucet", "--column", "student", "--checkpoints", f"0={files[0]}", f"1={files[1]}",
@@ -102,6 +103,7 @@ def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_it
     assert set(seen) == {(evaluate.EPISODES_PER_OBJECT, evaluate.TEST_SEEDS[0])} and len(seen) == 4
     assert out["seen"]["mean"] == pytest.approx(0.7) and out["seen"]["se"] == pytest.approx(0.1)  # std 0.141 / sqrt 2
     assert out["unseen"]["per_seed"] == pytest.approx([0.6, 0.4])
+    assert out["unseen"]["templates"]["held_out_bands"]["success"] == pytest.approx(0.5)  # per object, mean of seeds
     last = load_checkpoint(files[0])["history"][-1]
     assert out["steps"][0]["demo_frames"] == last["expert_frames"] + last["student_frames"] == out["steps"][0][
         "steps_in_all"]
@@ -112,3 +114,19 @@ def test_a_test_cell_evaluates_each_training_seed_at_the_test_seed_and_counts_it
                     "--json", str(tmp_path / "x.json")])
     with pytest.raises(ValueError, match="--checkpoints and --source are needed"):
         bench.main(["--task", "faucet", "--column", "rl", "--json", str(tmp_path / "x.json")])
+
+
+def test_success_by_template_comes_from_the_objects_metadata():
+    """Per template and, for the unseen split, the held-out-band half (templates the seen split has) and the
+    held-out-template half (templates it has not), all read from the catalog."""
+    from dexart_lite.objects import list_objects
+
+    unseen = list_objects("toilet", "unseen")
+    seen_templates = {o.template for o in list_objects("toilet", "seen")}
+    per_object = {o.name: float(o.template in seen_templates) for o in unseen}  # bands succeed, the new template not
+    groups = evaluate.by_template("toilet", "unseen", per_object)
+    bands = [o for o in unseen if o.template in seen_templates]
+    assert groups["held_out_bands"] == {"success": 1.0, "objects": len(bands)}
+    assert groups["held_out_template"] == {"success": 0.0, "objects": len(unseen) - len(bands)}
+    assert sum(g["objects"] for k, g in groups.items() if k.startswith("template ")) == len(unseen) == 11
+    assert "held_out_bands" not in evaluate.by_template("toilet", "seen", {o.name: 1.0 for o in list_objects("toilet", "seen")})

@@ -13,8 +13,10 @@ episodes' object-stratified one). Checkpoints are files or ``REV:path`` in git h
 as ``checkpoint_sweep.py`` does); every evaluation is cached beside its checkpoint.
 
 Written to ``benchmarks/results/test/<task>_<column>.json``: task, column, source (the candidate the headline rule
-chose, whose checkpoints these are: the README's table shows this file only while the rule still chooses it), the protocol (env seed, episodes per
-object), per split the cell (mean, se, per_seed, training_seeds, episode_se), the checkpoints, and the simulator
+chose, whose checkpoints these are: the README's table shows this file only while the rule still chooses it), the
+protocol (env seed, episodes per object), per split the cell (mean, se, per_seed, training_seeds, episode_se, the
+per-object success of each seed, and ``templates``: success per object template and, for the unseen split, its
+held-out-band and held-out-template halves, read from the objects' metadata), the checkpoints, and the simulator
 steps behind the cell per training seed: ``frames`` (the learner's own online frames), ``guide_frames`` (steps the
 scripted guide took before handing over, in guided starts), ``demo_frames`` (demonstrations and DAgger rounds, the
 student's distillation included), and ``steps_in_all`` (their sum); command and machine.
@@ -27,8 +29,8 @@ from pathlib import Path
 
 import dexart_lite
 from dexart_lite.rl.checkpoint import load_checkpoint
-from dexart_lite.rl.evaluate import (EPISODES_PER_OBJECT, TEST_SEEDS, evaluate_expert, over_seeds, protocol_evaluation,
-                                     split_stats)
+from dexart_lite.rl.evaluate import (EPISODES_PER_OBJECT, TEST_SEEDS, by_template, evaluate_expert, over_seeds,
+                                     protocol_evaluation, split_stats)
 from dexart_lite.utils import benchmark_results, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__).parent / "test"
@@ -59,7 +61,7 @@ def expert_cell(task: str, episodes: int) -> dict:
         result = evaluate_expert(task, split, episodes, TEST_SEEDS[0])
         stats = split_stats(result)
         out[split] = {**over_seeds([stats["success"]]), "training_seeds": [], "episode_se": [stats["se"]],
-                      "objects": stats["objects"]}
+                      "objects": stats["objects"], "templates": by_template(task, split, stats["objects"])}
     return out
 
 

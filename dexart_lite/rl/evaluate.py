@@ -258,10 +258,31 @@ def protocol_evaluation(checkpoints: dict[int, str | Path], phase: str = "test",
     out = {"phase": phase, "env_seed": seed, "episodes_per_object": episodes_per_object}
     for split in splits:
         stats = {k: split_stats(results[(str(c), split)]) for k, c in checkpoints.items()}
+        objects = {name: [s["objects"][name] for s in stats.values()] for name in next(iter(stats.values()))["objects"]}
         out[split] = {**over_seeds([s["success"] for s in stats.values()]),
-                      "training_seeds": list(checkpoints), "episode_se": [s["se"] for s in stats.values()]}
+                      "training_seeds": list(checkpoints), "episode_se": [s["se"] for s in stats.values()],
+                      "objects": objects,
+                      "templates": by_template(results[(str(next(iter(checkpoints.values()))), split)]["task"], split,
+                                               {n: sum(v) / len(v) for n, v in objects.items()})}
     out["frames"] = [results[(str(c), "seen")]["frames"] for c in checkpoints.values()]
     return out
+
+
+def by_template(task: str, split: str, per_object: dict[str, float]) -> dict:
+    """Success of one split per object template, read from the objects' metadata (no template is named here): each
+    template's mean over its objects, and for the unseen split its two halves as DexArt's unseen split is built:
+    ``held_out_bands`` (objects of a template the seen split has, with a parameter in a held-out band) and
+    ``held_out_template`` (objects of a template no seen object has)."""
+    infos = {o.name: o for o in objects_lib.list_objects(task, split)}
+    seen_templates = {o.template for o in objects_lib.list_objects(task, "seen")}
+    groups: dict[str, list[str]] = {}
+    for name in per_object:
+        groups.setdefault(f"template {infos[name].template}", []).append(name)
+        if split == "unseen":
+            half = "held_out_bands" if infos[name].template in seen_templates else "held_out_template"
+            groups.setdefault(half, []).append(name)
+    return {group: {"success": sum(per_object[n] for n in names) / len(names), "objects": len(names)}
+            for group, names in sorted(groups.items())}
 
 
 def choose_headline(candidates: list[dict], budget_frames: int) -> dict:

@@ -200,7 +200,9 @@ def cell(task: str, column: str, chosen: dict | None, link: str) -> str:
     final = test_result(task, column, chosen["name"])
     if final is not None:
         values = " / ".join(f"{final[s]['mean']:.2f} ± {final[s]['se']:.2f}" for s in ("seen", "unseen"))
-        return f"[{values}](benchmarks/results/test/{task}_{column}.json) (test seed)"
+        steps = [v["steps_in_all"] for v in final.get("steps", {}).values()]
+        in_all = f", {np.mean(steps) / 1e6:.2f}M simulator steps in all per seed" if steps else ""
+        return f"[{values}](benchmarks/results/test/{task}_{column}.json) (test seed{in_all})"
     values = " / ".join(f"{over_seeds(chosen['validation'][s])['mean']:.2f}" for s in ("seen", "unseen"))
     return f"[{values}]({link}) (validation)"
 

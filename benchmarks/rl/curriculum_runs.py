@@ -175,6 +175,10 @@ at_std = recipes.at_std  # the anchor and the KL stop rescaled to another explor
 
 
 RECIPES["student_anchored_floor_reverse_std03"] = at_std(RECIPES["student_anchored_floor_reverse"], 0.03)
+# student_anchored_floor_flat_b16k_std03: the laptop's recipe at exploration std 0.03, for buckets: from the
+# overhand expert's students (0.44 / 0.33 deterministic) the std-0.1 collections lift ~0.05 of the buckets, so PPO
+# would see almost no success; at std 0.03 the anchor's weight and floor and the KL stop are rescaled (at_std)
+RECIPES["student_anchored_floor_flat_b16k_std03"] = at_std(RECIPES["student_anchored_floor_flat_b16k"], 0.03)
 # student_anchored_floor_reverse_std03_backoff: the same with a frontier that also moves forward 5 steps after 6
 # failures in a row from it (Florensa et al. keep starts at 0.1-0.9 success; RFCL only moves back). At std 0.03 the
 # collected success fell from 0.6 to 0.2 within 150k frames and nothing brought it back; 3 successes

@@ -255,15 +255,14 @@ def protocol_evaluation(checkpoints: dict[int, str | Path], phase: str = "test",
     splits = ("seen", "unseen")
     results = evaluate_many([(str(c), s) for c in checkpoints.values() for s in splits], episodes_per_object, seed,
                             jobs)
+    task = next(iter(results.values()))["task"]
     out = {"phase": phase, "env_seed": seed, "episodes_per_object": episodes_per_object}
     for split in splits:
-        stats = {k: split_stats(results[(str(c), split)]) for k, c in checkpoints.items()}
-        objects = {name: [s["objects"][name] for s in stats.values()] for name in next(iter(stats.values()))["objects"]}
-        out[split] = {**over_seeds([s["success"] for s in stats.values()]),
-                      "training_seeds": list(checkpoints), "episode_se": [s["se"] for s in stats.values()],
-                      "objects": objects,
-                      "templates": by_template(results[(str(next(iter(checkpoints.values()))), split)]["task"], split,
-                                               {n: sum(v) / len(v) for n, v in objects.items()})}
+        stats = [split_stats(results[(str(c), split)]) for c in checkpoints.values()]
+        objects = {name: [s["objects"][name] for s in stats] for name in stats[0]["objects"]}  # per training seed
+        out[split] = {**over_seeds([s["success"] for s in stats]), "training_seeds": list(checkpoints),
+                      "episode_se": [s["se"] for s in stats], "objects": objects,
+                      "templates": by_template(task, split, {n: sum(v) / len(v) for n, v in objects.items()})}
     out["frames"] = [results[(str(c), "seen")]["frames"] for c in checkpoints.values()]
     return out
 

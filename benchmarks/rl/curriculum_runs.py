@@ -468,8 +468,8 @@ def park(cfgs: list, students: list, committed: Path) -> list[str]:
             shutil.rmtree(committed / out.name, ignore_errors=True)
     folders = [f for f in committed.iterdir() if f.is_dir()] if committed.exists() else []
     parked = sorted(f.name for f in folders if _unfinished(f))
-    wanted = {Path(_config(committed / name)["init_from"]).parent.name for name in parked
-              if _config(committed / name).get("init_from")}
+    starts = [_config(committed / name).get("init_from") for name in parked]
+    wanted = {Path(start).parent.name for start in starts if start}
     for folder in folders:
         if folder.name not in parked and folder.name not in wanted:
             shutil.rmtree(folder)

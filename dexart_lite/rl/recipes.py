@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 from pathlib import Path
 
@@ -198,7 +197,3 @@ def run(args: argparse.Namespace) -> int:
           f"{final['unseen']['success']:.2f} (test seed, {final['episodes_per_object']} per object) -> {out}/report.md")
     return 0
 
-
-def summary(path: str | Path) -> dict:
-    """A finished pipeline's ``recipe.json``."""
-    return json.loads((Path(path) / "recipe.json").read_text())

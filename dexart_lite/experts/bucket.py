@@ -183,19 +183,19 @@ class OverhandBucketSolver(BailSolver):
     RATE = 0.15  # rad per control step: the hand may close faster here, the tube is caged as it closes
     GAIN = 10.0  # 1/s: palm position gain (the base controller's 6 lets noise drift the palm further)
     MAX_SPEED, FINE_SPEED = 0.35, 0.5  # m/s: the palm's speed cap; its fraction near the tube
-    ALPHA, ALPHA_LIFT = 0.35, 1.3  # rad: fingers below the horizontal while grasping, and for the lift
+    ALPHA, ALPHA_LIFT = 0.35, 0.6  # rad: fingers below the horizontal while grasping, and for the lift
     TURN_RATE = 0.04  # rad per control step while turning the hand for the lift
     OPEN = (0.0, 0.0, 0.0)  # MCP, PIP, DIP while coming down
     SQUEEZE = (0.2, 1.6, 1.4)  # the cage: medial on the tube's outer side, distal under it
     CARRY = (1.2, 1.2, 1.0)  # the knuckles closed under the crease for the lift
     XC, ZC = 0.03, 0.05  # m: tube centre in the palm frame where the fingers close
-    HELD = ((0.0, 0.065), (-0.06, 0.06), (-0.025, 0.06))  # m: x_h, y_h, z_h box of a tube in the hand
+    HELD = ((0.0, 0.065), (-0.06, 0.06), (-0.05, 0.06))  # m: x_h, y_h, z_h box of a tube in the hand
     CARRY_BOX = ((0.015, 0.0, 0.015), (0.035, 0.0, 0.05))  # m: where the hand keeps a held tube (the crease)
     TOL = 0.012  # m: descent arrived
     LEAD = 0.3  # rad: while raising, follow the tube turned this much further
     QTOP = 0.5  # rad from upright: end of the raise, the bail still leaning on the fingers
-    CARRY_STEPS = 10  # control steps to close the knuckles before lifting
-    THUMB_AFTER, THUMB_PRESS = 0.02, 0.003  # m of hand rise before the thumb closes; m pressed into the tube
+    THUMB_FIRST, LIFT_AFTER = 6, 14  # control steps of the lift: the thumb alone closes; the hand starts rising
+    THUMB_PRESS = 0.003  # m: the thumb's target this far into the tube
     LIFT, LIFT_RATE = 0.36, 0.007  # m, m per control step (success needs 0.25 m of body lift)
 
     def __init__(self, env):
@@ -267,12 +267,13 @@ class OverhandBucketSolver(BailSolver):
             return a
         if not self.held(s) and s.base_pos[2] - s.base_pos_at_reset[2] < 0.03:  # lost before the bucket rose
             self.goto("approach")
+        # The thumb closes first, on the tube's wrist side (the cage's one open side: the bail's pull on a
+        # lifted bucket points there); only then do the knuckles close under the tube, which would push it
+        # out of a cage still open there. The hand turns a little under the tube meanwhile and rises once
+        # both are closed.
         alpha = min(self.ALPHA + self.phase_steps * self.TURN_RATE, self.ALPHA_LIFT)
-        turned = self.phase_steps - (self.ALPHA_LIFT - self.ALPHA) / self.TURN_RATE - self.CARRY_STEPS
-        up = float(np.clip(turned * self.LIFT_RATE, 0.0, self.LIFT))
+        fingers = self.SQUEEZE if self.phase_steps < self.THUMB_FIRST else self.CARRY
+        up = float(np.clip((self.phase_steps - self.LIFT_AFTER) * self.LIFT_RATE, 0.0, self.LIFT))
         goal = self.palm_at(self.top, self.hold[0], self.hold[2], alpha=alpha, up=up)
-        # Once the bucket hangs from the fingers, the thumb closes on the tube's wrist side (pressing
-        # THUMB_PRESS into it): a third finger group on the bail, as DexArt's stage 3 asks.
-        thumb = self.thumb if up > self.THUMB_AFTER else None
-        a, _, _ = self.action(s, goal, self.shape(self.CARRY, thumb), speed=1.0)
+        a, _, _ = self.action(s, goal, self.shape(fingers, self.thumb), speed=1.0)
         return a

@@ -30,6 +30,7 @@ import numpy as np
 from dexart_lite.objects import list_objects
 from dexart_lite.experts import SOLVERS
 from dexart_lite.experts.solve import solve
+from dexart_lite.rollout import NOISE_PARTS
 from dexart_lite.utils import fast_mode, provenance, save_figure, write_json
 
 SIGMAS = (0.0, 0.1, 0.3, 0.5, 1.0)
@@ -45,6 +46,8 @@ def main(argv=None) -> dict:
                         help="one solve per seed (its own reset seeds and noise draws); the table adds their mean")
     parser.add_argument("--expert", help="another expert of the task than its own, by class name "
                         "(dexart_lite.experts.TASK_EXPERTS)")
+    parser.add_argument("--noise-part", default="all", choices=list(NOISE_PARTS),
+                        help="the action dimensions perturbed: all, arm (the palm twist) or hand (the joint targets)")
     parser.add_argument("--json", type=Path, help="write the results here (and the PNG next to it)")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -57,7 +60,8 @@ def main(argv=None) -> dict:
             for seed in args.seeds:
                 start = time.perf_counter()
                 res = solve(args.task, split, args.episodes_per_object, seed, object_names=object_names,
-                            progress=not fast_mode(), action_noise=sigma, expert=args.expert)
+                            progress=not fast_mode(), action_noise=sigma, expert=args.expert,
+                            noise_part=args.noise_part)
                 res["wall_time_s"] = time.perf_counter() - start
                 rows.append(res)
     summary = mean_over_seeds(rows)
@@ -74,7 +78,7 @@ def main(argv=None) -> dict:
         for r in summary:
             print(f"| {r['split']} | {r['action_noise']:g} | mean | **{r['success_rate']:.2f}** +- "
                   f"{r['success_std']:.2f} | {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
-    result = {"task": args.task, "expert": rows[0]["expert"], "splits": args.splits,
+    result = {"task": args.task, "expert": rows[0]["expert"], "noise_part": args.noise_part, "splits": args.splits,
               "episodes_per_object": args.episodes_per_object, "seeds": args.seeds, "rows": rows,
               "mean_over_seeds": summary,
               **provenance(__file__, argv)}

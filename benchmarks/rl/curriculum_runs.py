@@ -83,8 +83,6 @@ RECIPES = {
     "ppo": {},
     "bc": dict(DEMO),  # the same warm start and BC term, every episode from the true reset
     "reverse_bc": {**DEMO, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
-    "uniform_bc": {**DEMO, "curriculum": "uniform", "curriculum_horizon": 130},
-    "bc_guarded": dict(GUARDED),
     # dagger: the guarded recipe from a better-cloned policy: after the BC warm start, 3 DAgger rounds in which
     # the cloned policy drives 4 episodes per object and the expert labels what it visits (their steps count
     # as demonstration frames, not online frames)
@@ -106,10 +104,6 @@ RECIPES = {
     # student drives (labelled by the guide) are the BC term's data
     "student_guarded": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "bc_warmstart": 0, "student": True},
     "student_anchored": dict(ANCHORED),  # ANCHORED above
-    # anchored_decay: the same with the anchor let go slowly (x 0.99 per batch: half its weight after ~70 batches,
-    # 280k frames), so that RL may move further from the student once its critic and collection are settled
-    # (defined; its PPO not run: in runs of ~40 min x 0.99 per batch leaves the anchor at ~0.6, see the release recipe)
-    "student_anchored_decay": {**ANCHORED, "anchor_decay": 0.99},
     # anchored_release: the anchor let go within a short run (x 0.95 per batch: half its weight ~14 batches, 56k
     # frames, after the critic warm-up, a tenth after ~45): does PPO climb above the student or fall from it
     # once the KL to it no longer holds it?
@@ -229,10 +223,9 @@ RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], 
 # student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students
 RECIPES["student_rounds10_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
                                                          "student": "rounds10"}
-# ... and from the betafloor and successonly students
-for _variant in ("betafloor", "successonly"):
-    RECIPES[f"student_{_variant}_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
-                                                                 "student": _variant}
+# ... and from the successonly students
+RECIPES["student_successonly_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
+                                                             "student": "successonly"}
 # student_successonly_anchored_release: the toilets' headline RL recipe (student_anchored_release, 38 min per seed)
 # from the successonly students, RL's gain over the better students on the same budget
 RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_release"], "student": "successonly"}

@@ -162,7 +162,8 @@ class OverhandBucketSolver(BailSolver):
     under exploration noise the 3-15 g bail leaves the tips and topples over the top): the closing fingers
     themselves scoop the tube up off the wall and press it into the crease under the knuckles, so from
     the first raise the tube is held on three sides (palm above, fingers on its outer side and below) and
-    the bail's weight leans it into the fingers while it is short of upright. The raise stops at
+    the bail's weight leans it into the fingers while it is short of upright; the thumb closes the fourth
+    side before the bucket leaves the floor. The raise stops at
     ``QTOP`` from upright (success needs |q| < 0.47 rad); the lift swings the bail upright by itself.
 
     Closed loop: every step reads where the tube is in the palm frame. A close that did not cage the
@@ -175,9 +176,9 @@ class OverhandBucketSolver(BailSolver):
     2. descend: onto the tube, fingers straight, until the tube is within ``TOL`` of (XC, ZC).
     3. close: curl to ``SQUEEZE``; the fingertips lift the tube into the crease (caged, or regrasp).
     4. raise: carry the tube up its circle to ``QTOP``, the tube kept where it sits in the hand.
-    5. lift: turn the hand under the tube to ``ALPHA_LIFT`` (fingers nearly down: the hand's opening
-       faces up, the bucket's weight pulls the tube into the curled fingers), close the knuckles
-       (``CARRY``), then straight up ``LIFT``.
+    5. lift: close the thumb on the tube's wrist side (the cage's open side, where the bail pulls the tube
+       once the bucket hangs), then the knuckles under it (``CARRY``; closed first, they push the tube out
+       through that side), turning the hand to ``ALPHA_LIFT`` meanwhile, then straight up ``LIFT``.
     """
 
     RATE = 0.15  # rad per control step: the hand may close faster here, the tube is caged as it closes

@@ -27,7 +27,7 @@ def solve_episodes(names: list[str], episodes_per_object: int, seed: int) -> lis
 
 def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: int = 0, object_names=None,
           progress: bool = True, action_noise: float = 0.0, env_kwargs: dict | None = None,
-          expert: str | None = None) -> dict:
+          expert: str | None = None, noise_part: str = "all") -> dict:
     """Run the expert over every object of a split; success counts if reached at any step.
 
     Episode ``k`` of object ``i`` is reset with seed ``seed + 1000 k + i``. ``action_noise``: std of
@@ -36,6 +36,8 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     from the env's. ``env_kwargs``: further keywords of the env (e.g. ``solver_iterations``, for
     ``benchmarks/perf/bench_physics.py``; ``hand="synergy"``: the expert's hand projected on the synergies).
     ``expert``: another expert of the task than its own, by class name (``dexart_lite.experts.TASK_EXPERTS``).
+    ``noise_part``: the action dimensions the noise perturbs (``rollout.NOISE_PARTS``: ``all``, ``arm``: the palm
+    twist only, ``hand``: the 16 joint targets only).
     """
     from dexart_lite.envs import make
 
@@ -44,7 +46,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     env = make(task, split=split, object_names=object_names, **{"num_points": 32, **(env_kwargs or {})})
     names = env.unwrapped.objects.names
     expert_cls = SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy
-    policy = noisy(expert_cls(env, expert), action_noise, np.random.default_rng(seed))
+    policy = noisy(expert_cls(env, expert), action_noise, np.random.default_rng(seed), noise_part)
     episodes = solve_episodes(names, episodes_per_object, seed)
     results = run_episodes(policy, env, episodes, progress=progress, desc=f"solve {task}/{split}")
     env.close()
@@ -52,7 +54,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
     stage_steps = np.bincount(np.concatenate([e["stages"] for e in results]) - 1, minlength=3)  # steps in stage 1..3
     return {"task": task, "split": split, "episodes_per_object": episodes_per_object, "seed": seed,
             "expert": policy.policy.expert.__name__,
-            "action_noise": action_noise,
+            "action_noise": action_noise, **({"noise_part": noise_part} if noise_part != "all" else {}),
             "success_rate": float(np.mean([e["success"] for e in results])),
             "success_per_object": rates, "mean_max_stage": float(np.mean([e["max_stage"] for e in results])),
             "mean_return": float(np.mean([e["return"] for e in results])),

@@ -156,13 +156,17 @@ HOOK_NOISELESS = "0.91 / 1.00 (solve, seed 0)"
 
 def bucket_expert_noise() -> str:
     """``exploration_noise_bucket.json`` (overhand, 3 seeds), ``exploration_noise_bucket_turnlift.json`` (the
-    overhand expert before its lift closed the thumb first, 3 seeds) and ``exploration_noise_bucket_hook.json`` (seed 0)."""
+    overhand expert before its lift closed the thumb first, 3 seeds), ``exploration_noise_bucket_{arm,hand}.json``
+    (std 0.3 on one part of the action, seed 0) and ``exploration_noise_bucket_hook.json`` (seed 0)."""
     overhand, turned = "experts/exploration_noise_bucket.json", "experts/exploration_noise_bucket_turnlift.json"
     hook = "experts/exploration_noise_bucket_hook.json"
     rows = [[f"overhand ({link(overhand)})", noise_cell(load(overhand), 0.0), bold(noise_cell(load(overhand), 0.1)),
              noise_cell(load(overhand), 0.3)],
             [f"overhand, lift by turning the hand first ({link(turned)})", noise_cell(load(turned), 0.0),
              noise_cell(load(turned), 0.1), noise_cell(load(turned), 0.3)],
+            *[[f"overhand, noise on the {what} only, seed 0 ({link(path)})", "", "", noise_cell(load(path), 0.3)]
+              for what, path in (("palm twist", "experts/exploration_noise_bucket_arm.json"),
+                                 ("hand joint targets", "experts/exploration_noise_bucket_hand.json"))],
             [f"fingertip hook ({link(hook)})", HOOK_NOISELESS, noise_cell(load(hook), 0.1), noise_cell(load(hook), 0.3)],
             ["target", ">= 0.9", ">= 0.8", ">= 0.6"]]
     return table(["bucket expert", "no noise, seen / unseen", "std 0.1", "std 0.3"], rows)

@@ -197,7 +197,8 @@ DISTILLED = [
     ("toilet, 2.2x + student noise ({n})", "students/distill_toilet_episodes2x_noise.json", False, (1,), ""),
     ("bucket, defaults ({n})", "students/distill_bucket.json", False, None, ""),
     ("bucket, demonstration noise 0.05 ({n})", "students/distill_bucket_demonoise005.json", False, None, ""),
-    ("bucket, from the overhand expert ({n})", "students/distill_bucket_overhand.json", False, None, ""),
+    ("bucket, from the overhand expert, lift by turning the hand ({n})", "students/distill_bucket_overhand.json", False,
+     None, ""),
     ("bucket, from the overhand expert with the thumb-first lift ({n})", "students/distill_bucket_thumbfirst.json", True,
      None, ""),
 ]

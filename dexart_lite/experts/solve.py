@@ -15,7 +15,7 @@ import numpy as np
 
 import dexart_lite
 from dexart_lite.experts import SOLVERS, ScriptedPolicy, SynergyScriptedPolicy
-from dexart_lite.rollout import noisy, run_episodes
+from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
 from dexart_lite.utils import check_choice
 
 
@@ -43,6 +43,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
 
     if not (math.isfinite(action_noise) and action_noise >= 0.0):
         raise ValueError(f"action_noise must be a finite std >= 0, got {action_noise}")
+    check_choice("noise part", noise_part, NOISE_PARTS)  # before the env is built
     env = make(task, split=split, object_names=object_names, **{"num_points": 32, **(env_kwargs or {})})
     names = env.unwrapped.objects.names
     expert_cls = SynergyScriptedPolicy if env.unwrapped.hand_mode == "synergy" else ScriptedPolicy

@@ -216,8 +216,10 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # once beta < 0.1, and the students with more low-beta rounds are worse)
 # successonly: only the DAgger rounds' successful episodes join the buffer (drop_failed), so the states of failed
 # episodes, which fill the low-beta rounds, are not fitted
+# thumbfirst: no setting changed; the bucket students distilled from the overhand expert after its lift closed the
+# thumb first (distill_bucket_thumbfirst.json), in folders of their own, apart from the students of the expert before
 STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "rounds10": {"rounds": 10},
-                    "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}}
+                    "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}, "thumbfirst": {}}
 # student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
 RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
 # student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students
@@ -226,6 +228,9 @@ RECIPES["student_rounds10_anchored_floor_reverse_d17"] = {**RECIPES["student_anc
 # ... and from the successonly students
 RECIPES["student_successonly_anchored_floor_reverse_d17"] = {**RECIPES["student_anchored_floor_reverse_d17"],
                                                              "student": "successonly"}
+# student_thumbfirst_anchored_floor_flat_b16k_std03: the bucket's RL recipe from the thumb-first expert's students
+RECIPES["student_thumbfirst_anchored_floor_flat_b16k_std03"] = {**RECIPES["student_anchored_floor_flat_b16k_std03"],
+                                                                "student": "thumbfirst"}
 # student_successonly_anchored_release: the toilets' headline RL recipe (student_anchored_release, 38 min per seed)
 # from the successonly students, RL's gain over the better students on the same budget
 RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_release"], "student": "successonly"}

@@ -334,7 +334,7 @@ def test_stage_timeline_orders_the_experts_stages_and_counts_steps_as_the_episod
 
 
 def test_solve_names_the_noise_parts_on_a_wrong_one():
-    """solve(noise_part=...) passes the part to the noise: an unknown part is an error naming the valid ones."""
+    """solve(noise_part=...): an unknown part is an error naming the valid ones, raised before any env is built."""
     with pytest.raises(ValueError, match="noise part.*all.*arm.*hand"):
         solve("bucket", "seen", 1, 0, object_names=["bucket_222c59ab44"], progress=False, action_noise=0.1,
               noise_part="wrist")

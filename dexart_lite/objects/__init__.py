@@ -33,7 +33,12 @@ from dexart_lite.registration import SPECS, TASKS
 from dexart_lite.utils import check_choice
 
 CATEGORIES = TASKS
-SPLITS = ("seen", "unseen", "seen_half")  # seen_half = the first 5/5/5/8 seen objects (by index)
+# seen_half = the first 5/5/5/8 seen objects (by index); wide = extra training objects of templates A / B drawn
+# beyond their seen ranges (toilets only, ``CategorySpec.widen``); seen_wide = seen + wide. Only seen and unseen
+# are DexArt's splits, and only they are evaluated.
+SPLITS = ("seen", "unseen", "seen_half", "wide", "seen_wide")
+TRAINING_SPLITS = ("seen", "seen_half", "seen_wide")  # what a learner may train on
+FOLDERS = ("seen", "unseen", "wide")  # urdf/objects/<category>/<folder>/
 HALF_SIZES = {c: SPECS[c].half for c in CATEGORIES}  # registration.SPECS: the tasks' facts, written once
 ROBOT_BASE = {c: SPECS[c].robot_base for c in CATEGORIES}  # world, metres (DexArt)
 
@@ -44,9 +49,9 @@ class ObjectInfo:
 
     name: str
     category: str
-    split: str  # "seen" or "unseen" (seen_half objects are seen objects)
+    split: str  # "seen", "unseen" or "wide" (seen_half objects are seen objects)
     index: int  # position in its split
-    template: str  # "A" or "B" (seen), "A", "B" or "C" (unseen); C is the held-out template
+    template: str  # "A" or "B" (seen, wide), "A", "B" or "C" (unseen); C is the held-out template
     urdf_path: Path  # absolute
     fixed_base: bool  # False only for bucket
     joint_name: str  # the task joint; it is joint index 0 and the functional part is link index 0
@@ -75,10 +80,11 @@ def _info(record: dict, folder: Path) -> ObjectInfo:
 
 @functools.lru_cache(maxsize=4)
 def _catalog(root: str) -> dict[str, dict[str, list[ObjectInfo]]]:
-    """``{category: {"seen": [...], "unseen": [...]}}`` read from the params.json files under ``root``."""
-    catalog: dict[str, dict[str, list[ObjectInfo]]] = {c: {"seen": [], "unseen": []} for c in CATEGORIES}
+    """``{category: {"seen": [...], "unseen": [...], "wide": [...]}}`` read from the params.json files under
+    ``root``."""
+    catalog: dict[str, dict[str, list[ObjectInfo]]] = {c: {s: [] for s in FOLDERS} for c in CATEGORIES}
     for category in CATEGORIES:
-        for split in ("seen", "unseen"):
+        for split in FOLDERS:
             folder = Path(root) / category / split
             if not folder.is_dir():
                 continue
@@ -98,13 +104,15 @@ def list_objects(category: str, split: str) -> list[ObjectInfo]:
     catalog = _catalog(_objects_root())[category]
     if split == "seen_half":
         return catalog["seen"][: HALF_SIZES[category]]
+    if split == "seen_wide":
+        return catalog["seen"] + catalog["wide"]
     return list(catalog[split])
 
 
 def all_objects(root: Path | None = None) -> list[ObjectInfo]:
-    """Every object, by category, split (seen first) and index; ``root`` defaults to ``urdf/objects``."""
+    """Every object, by category, split (seen, unseen, wide) and index; ``root`` defaults to ``urdf/objects``."""
     catalog = _catalog(str(Path(root).resolve()) if root is not None else _objects_root())
-    return [info for c in CATEGORIES for s in ("seen", "unseen") for info in catalog[c][s]]
+    return [info for c in CATEGORIES for s in FOLDERS for info in catalog[c][s]]
 
 
 def get_object(name: str) -> ObjectInfo:

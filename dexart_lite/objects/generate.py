@@ -8,6 +8,9 @@ The recipe (``urdf/objects/README.md`` says what it produced):
   bands. Unseen objects: the first ceil(n / 2) use the held-out template C; the rest alternate A / B
   with one primary parameter drawn from a held-out band (interior 40-60 % or an outer 12 % of the
   range), the other parameters as for seen objects.
+* The optional ``wide`` split (``CategorySpec.wide``; the toilet only): extra training objects of
+  templates A / B, drawn as seen objects and then changed by the category's ``widen``. Drawn after the
+  unseen objects, so a near-duplicate of any of them is rejected.
 * A draw is rejected if it is a near-duplicate (normalised parameter distance < ``DUPLICATE_EPS``
   to an accepted object of the same template), if the grasp point leaves the arm's reach under
   DexArt's randomisation (``placement.py``), or if it fails a physics check (``feasibility.py``).
@@ -39,6 +42,8 @@ GENERATOR_VERSION = 2  # bump whenever a generator's output changes for the same
 CATEGORY_SPECS: dict[str, CategorySpec] = {"faucet": faucet.SPEC, "bucket": bucket.SPEC, "laptop": laptop.SPEC,
                                            "toilet": toilet.SPEC}
 SPLIT_SIZES = {c: {"seen": spec.seen, "unseen": spec.unseen} for c, spec in TASK_SPECS.items()}  # DexArt's
+WIDE_SIZES = {c: spec.wide for c, spec in CATEGORY_SPECS.items()}  # extra training objects (not DexArt's)
+GENERATED_SPLITS = ("seen", "unseen", "wide")  # in drawing order
 DUPLICATE_EPS = 0.08  # normalised parameter distance below which a draw is a near-duplicate
 MAX_ATTEMPTS = 200
 NAME_PATTERN = re.compile(r"^(faucet|bucket|laptop|toilet)_[0-9a-f]{10}$")
@@ -81,7 +86,7 @@ def seed_for(category: str, split: str, index: int, attempt: int) -> int:
 
 def template_and_band(category: str, split: str, index: int) -> tuple[str, Band | None]:
     """The template (and held-out band, if any) of the object at ``index`` of a split."""
-    if split == "seen":
+    if split in ("seen", "wide"):
         return "AB"[index % 2], None
     n_template_c = math.ceil(SPLIT_SIZES[category]["unseen"] / 2)
     if index < n_template_c:
@@ -129,6 +134,8 @@ def draw_params(category: str, split: str, index: int, attempt: int) -> tuple[st
         else:
             u = rng.uniform(0.0, 1.0)
         params[param.name] = round(lo + u * (hi - lo), param.decimals) + 0.0
+    if split == "wide":
+        params = spec.widen(params, rng)
     return template, band, params, seed
 
 
@@ -227,7 +234,8 @@ class Accepted:
 def generate_split(category: str, split: str, accepted: list[Accepted], staging: Path, log=print) -> list[Accepted]:
     """Draw the objects of one split; ``accepted`` (earlier objects of the category) is extended."""
     out = []
-    for index in range(SPLIT_SIZES[category][split]):
+    size = WIDE_SIZES[category] if split == "wide" else SPLIT_SIZES[category][split]
+    for index in range(size):
         rejected: dict[str, int] = {}
         for attempt in range(MAX_ATTEMPTS):
             draw = make_draw(category, split, index, attempt)
@@ -263,14 +271,14 @@ def generate_split(category: str, split: str, accepted: list[Accepted], staging:
 
 def generate_category(category: str, staging: Path, log=print) -> list[Accepted]:
     accepted: list[Accepted] = []
-    for split in ("seen", "unseen"):
+    for split in GENERATED_SPLITS:
         generate_split(category, split, accepted, staging, log)
     return accepted
 
 
 def _existing_folders(root: Path, category: str) -> list[Path]:
     found = []
-    for split in ("seen", "unseen"):
+    for split in GENERATED_SPLITS:
         base = root / category / split
         if base.is_dir():
             found += [d for d in sorted(base.iterdir())

@@ -136,6 +136,11 @@ class CategorySpec:
     primary: tuple[str, ...]  # parameters with held-out bands (seen draws avoid them)
     build: Callable[[str, dict], ObjectModel]
     summary_keys: tuple[str, ...]  # parameters shown by ``objects list``
+    # The optional "wide" training split: ``wide`` extra objects of templates A / B whose draws ``widen`` changes
+    # (params, rng) -> params beyond the A / B ranges. Training-only shapes for a category whose seen objects
+    # are too alike; the seen and unseen splits (DexArt's) are untouched. 0: no wide split.
+    wide: int = 0
+    widen: Callable[[dict, np.random.Generator], dict] | None = None
 
     def param(self, name: str) -> Param:
         return next(p for p in self.params if p.name == name)

@@ -160,7 +160,22 @@ def build(template: str, p: dict) -> ObjectModel:
     return model
 
 
+WIDE_POWER = (2.0, 3.0)  # outline exponent of the wide split's toilets (A / B: 2, the held-out C: 3.5-5)
+WIDE_TANKLESS = 0.5  # probability that a wide-split toilet has no tank (every seen toilet has one)
+
+
+def widen(params: dict, rng: np.random.Generator) -> dict:
+    """A wide-split toilet: an A / B draw whose outline may be squarer (exponent up to 3, still below the
+    held-out template's 3.5) and which, with probability 0.5, has no tank. The 17 seen toilets are all oval
+    or round with a tank, and policies trained on them find the lid by the tank
+    (``docs/results/students.md``); these are extra training shapes, never evaluation objects."""
+    params = dict(params, power=round(float(rng.uniform(*WIDE_POWER)), 4) + 0.0)
+    if rng.uniform() < WIDE_TANKLESS:
+        params.update(tank_d=0.0, tank_h=0.0, tank_wf=0.0)
+    return params
+
+
 SPEC = CategorySpec(
     name="toilet", templates=TEMPLATES, params=PARAMS, primary=("rim_h", "bowl_w"), build=build,
-    summary_keys=("bowl_w", "ratio", "rim_h", "theta_max"),
+    summary_keys=("bowl_w", "ratio", "rim_h", "theta_max", "power", "tank_d"), wide=17, widen=widen,
 )

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from dexart_lite import objects as objects_lib
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.registration import HAND_MODES, OBSERVATIONS, TASKS
@@ -46,7 +47,8 @@ class PPOConfig:
     max_grad_norm: float = 0.5
     adam_eps: float = 1e-5
     normalize_advantage: bool = field(default=True, metadata={"help": "per minibatch, as SB3"})
-    split: str = field(default="seen", metadata={"help": "training objects: seen or seen_half"})
+    split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + the wide "
+                       "split's extra toilets)"})
     obs: str = field(default="cloud", metadata={"help": "cloud (DexArt: point cloud + state, PointNet) or state: a "
                      "diagnostic, the state vector plus the privileged object state and no camera, an MLP policy "
                      "(--encoder is then unused); it measures how learnable a task's reward is apart from perception"})
@@ -203,7 +205,7 @@ def validate(cfg: PPOConfig) -> None:
     check_choice("task", cfg.task, TASKS)
     check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
     check_choice("backend", cfg.backend, BACKENDS)
-    check_choice("training split", cfg.split, ("seen", "seen_half"))
+    check_choice("training split", cfg.split, objects_lib.TRAINING_SPLITS)
     check_choice("reward", cfg.reward, REWARD_MODES)
     check_choice("observation", cfg.obs, OBSERVATIONS)
     check_choice("device", cfg.device, DEVICES)

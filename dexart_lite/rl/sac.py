@@ -37,6 +37,7 @@ import torch
 from tensordict import TensorDict
 from tqdm import tqdm
 
+from dexart_lite import objects as objects_lib
 from dexart_lite.models.actor_critic import POINTS_KEY, STATE_KEY
 from dexart_lite.models.soft_actor_critic import make_qvalue, make_sac_actor, observation_keys, sac_trunk
 from dexart_lite.registration import OBSERVATIONS, TASKS
@@ -141,7 +142,7 @@ def validate(cfg: SACConfig) -> None:
     check_choice("task", cfg.task, TASKS)
     check_choice("observation", cfg.obs, OBSERVATIONS)
     check_choice("encoder size", cfg.encoder, ENCODER_SIZES)
-    check_choice("training split", cfg.split, ("seen", "seen_half"))
+    check_choice("training split", cfg.split, objects_lib.TRAINING_SPLITS)
     check_choice("device", cfg.device, DEVICES)
     if cfg.device == "cuda":
         resolve_device(cfg.device)  # no CUDA here: one line, before anything is built

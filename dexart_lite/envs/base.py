@@ -162,7 +162,7 @@ class DexArtEnv(gym.Env):
             infos = [objects_lib.get_object(n) for n in object_names]
             for info in infos:
                 check_choice(f"{self.CATEGORY} object", info.name,
-                             [o.name for s in ("seen", "unseen") for o in objects_lib.list_objects(self.CATEGORY, s)])
+                             [o.name for s in objects_lib.FOLDERS for o in objects_lib.list_objects(self.CATEGORY, s)])
         if num_points < 1 or frame_skip < 1 or dt <= 0:
             raise ValueError("num_points and frame_skip must be >= 1 and dt > 0")
         check_choice("reward", reward, rewards.REWARD_MODES)

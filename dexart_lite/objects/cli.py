@@ -49,7 +49,7 @@ def _selected(category: str | None, split: str | None) -> list[objects.ObjectInf
         check_choice("split", split, objects.SPLITS)
     out = []
     for c in objects.CATEGORIES if category is None else (category,):
-        for s in ("seen", "unseen") if split is None else (split,):
+        for s in objects.FOLDERS if split is None else (split,):
             out += objects.list_objects(c, s)
     return out
 

@@ -15,7 +15,8 @@ import numpy as np
 from dexart_lite.objects import CATEGORIES, HALF_SIZES, ROBOT_BASE, all_objects, geometry
 from dexart_lite.objects import report as split_report
 from dexart_lite.objects.feasibility import BUCKET_LIFT, DRIVE_TORQUE, LIFT_FORCE
-from dexart_lite.objects.generate import CATEGORY_SPECS, CHECKS_FILE, DUPLICATE_EPS, GENERATOR_VERSION, SPLIT_SIZES
+from dexart_lite.objects.generate import (CATEGORY_SPECS, CHECKS_FILE, DUPLICATE_EPS, GENERATED_SPLITS, GENERATOR_VERSION,
+                                         SPLIT_SIZES, WIDE_SIZES)
 from dexart_lite.objects.placement import MIN_FRONT, RAND_POS, RAND_YAW_DEG, REACH, SHOULDER_HEIGHT, grasp_x_stats
 
 CONVENTIONS = {  # category -> (part link, joint, axis and sign, q = 0, limits, init, target, grasp point)
@@ -37,7 +38,7 @@ CONVENTIONS = {  # category -> (part link, joint, axis and sign, q = 0, limits, 
 def _records(root: Path) -> list[dict]:
     out = []
     for category in CATEGORIES:
-        for split in ("seen", "unseen"):
+        for split in GENERATED_SPLITS:
             recs = [json.loads(p.read_text()) for p in sorted((root / category / split).glob("*/params.json"))]
             out += sorted(recs, key=lambda r: r["index"])
     return out
@@ -88,13 +89,24 @@ def _rows(by_cat: dict) -> dict[str, str]:
             raise RuntimeError(f"{c} has {counts}, expected {SPLIT_SIZES[c]}; run `objects generate`")
         n_c = sum(r["split"] == "unseen" and r["template"] == "C" for r in recs)
         n_b = sum(r["split"] == "unseen" and r["band"] is not None for r in recs)
-        splits.append(f"| {c} | {counts['seen']} | {counts['unseen']} | {HALF_SIZES[c]} | {n_c} | {n_b} |")
+        n_wide = sum(r["split"] == "wide" for r in recs)
+        if n_wide != WIDE_SIZES[c]:
+            raise RuntimeError(f"{c} has {n_wide} wide objects, expected {WIDE_SIZES[c]}; run `objects generate`")
+        splits.append(f"| {c} | {counts['seen']} | {counts['unseen']} | {HALF_SIZES[c]} | {n_c} | {n_b} | {n_wide} |")
         dens = f"{recs[0]['links'][recs[0]['body_link']]['density']:g} / {recs[0]['links'][recs[0]['part_link']]['density']:g}"
         tris = [sum(link["triangles"] for link in r["links"].values()) for r in recs]
         masses.append(f"| {c} | {dens} | {_range([r['links'][r['body_link']]['mass'] for r in recs])} "
                       f"| {_range([r['links'][r['part_link']]['mass'] for r in recs])} "
                       f"| {_range([r['joint']['friction'] for r in recs], 2)} | {min(tris)}-{max(tris)} |")
     return {"reach_table": "\n".join(reach), "splits_table": "\n".join(splits), "masses_table": "\n".join(masses)}
+
+
+def _wide_summary(recs: list[dict]) -> str:
+    """How the toilets' wide split came out: its count, tankless count and outline exponents."""
+    wide = [r for r in recs if r["split"] == "wide"]
+    tankless = sum(r["params"]["tank_d"] == 0 for r in wide)
+    return (f"{len(wide)} toilets (templates A / B alternating), {tankless} of them tankless, outline exponent "
+            f"{_range([r['params']['power'] for r in wide], 2)}")
 
 
 def _checks_table(by_cat: dict, checks: dict) -> str:
@@ -168,6 +180,7 @@ def readme_text(root: Path) -> str:
         "split_report": "\n\n".join(split_report.category_report(
             c, [i for i in infos if i.category == c and i.split == "seen"],
             [i for i in infos if i.category == c and i.split == "unseen"]).text() for c in CATEGORIES),
+        "wide_toilets": _wide_summary(by_cat["toilet"]),
         "montages": "\n".join(f"* [{c}](montage_{c}.png)" for c in CATEGORIES),
         "objects_tables": _object_tables(by_cat), **_rows(by_cat)}
     return Template(TEMPLATE.read_text()).substitute(values)

@@ -230,6 +230,59 @@ def distilled_students() -> str:
     return table(["DAgger student", "seen", "unseen", "frames / seed (expert + student)", "wall time / seed", "files"], rows)
 
 
+# Toilet success per template, held out (env seed 1000, 10 deterministic episodes per object, from the true reset;
+# benchmarks/students/success_by_template.py): (label, its JSONs, whose runs are pooled)
+TOILET_TEMPLATES = [
+    ("students (curriculum's)", ["students/success_by_template_toilet_heldout_students.json"]),
+    ("students, random occlusion (`erase`)", ["students/success_by_template_toilet_erase_heldout.json"]),
+    ("students, tank hidden in half the training episodes (oracle)",
+     ["students/success_by_template_toilet_notank_heldout.json"]),
+    ("students, successful DAgger episodes only (`successonly`)",
+     ["students/success_by_template_toilet_successonly_s0_heldout.json",
+      "students/success_by_template_toilet_successonly_s12_heldout.json"]),
+    ("RL from the curriculum's students (`student_anchored_floor`)", ["rl/success_by_template_toilet_floor_heldout.json"]),
+    ("RL, reverse curriculum (`student_anchored_floor_reverse_d17`)",
+     ["rl/success_by_template_toilet_reverse_heldout.json"]),
+]
+
+
+def template_groups(rels: list[str]) -> tuple[list[str], dict[str, list[float]]]:
+    """Per-run success of each group of the toilets' held-out evaluations, pooled over the JSONs ``rels``: seen by
+    template, seen, unseen by template, the held-out-band half (unseen objects of the seen templates), unseen. Read
+    from the per-object rows (every object has the same episodes there); the templates come from the JSON."""
+    results = [load(rel) for rel in rels]
+    if {r["eval_file"] for r in results} != {"heldout_{split}_e10_seed1000.json"}:
+        raise ValueError(f"{rels}: not all held-out evaluations at env seed 1000")
+    per_object = results[0]["per_object"]
+    seen_templates = sorted({o["template"] for o in per_object.values() if o["split"] == "seen"})
+    unseen_templates = sorted({o["template"] for o in per_object.values() if o["split"] == "unseen"})
+    groups = {f"seen {t}": lambda o, t=t: o["split"] == "seen" and o["template"] == t for t in seen_templates}
+    groups["seen"] = lambda o: o["split"] == "seen"
+    groups.update({f"unseen {t}": lambda o, t=t: o["split"] == "unseen" and o["template"] == t for t in unseen_templates})
+    groups["held-out bands"] = lambda o: o["split"] == "unseen" and o["template"] in seen_templates
+    groups["unseen"] = lambda o: o["split"] == "unseen"
+    values = {}
+    for name, member in groups.items():
+        values[name] = []
+        for result in results:
+            objs = [o["per_run"] for o in result["per_object"].values() if member(o)]
+            values[name] += [mean([o[r] for o in objs]) for r in range(len(objs[0]))]
+    return list(groups), values
+
+
+def toilet_templates() -> str:
+    """Toilet success per template and the unseen split's two halves, held out."""
+    rows, header = [], None
+    for label, rels in TOILET_TEMPLATES:
+        names, values = template_groups(rels)
+        header = header or ["policies", "runs", *names, "files"]
+        if ["policies", "runs", *names, "files"] != header:
+            raise ValueError(f"{rels}: other templates than the rows above")
+        files = ", ".join(link(rel, f"JSON {i + 1}" if len(rels) > 1 else "JSON") for i, rel in enumerate(rels))
+        rows.append([label, str(len(values["seen"])), *(pm(mean(v), std(v)) for v in values.values()), files])
+    return table(header, rows)
+
+
 # ---------------------------------------------------------------------------------------------------- findings.md
 
 FINDINGS = RES / "findings.md"
@@ -853,6 +906,7 @@ TABLES = {
     "expert-success": (EXPERTS, expert_success), "expert-noise": (EXPERTS, expert_noise),
     "bucket-expert-noise": (EXPERTS, bucket_expert_noise),
     "distilled-students": (STUDENTS, distilled_students), "make-demo": (STUDENTS, make_demo),
+    "toilet-templates": (STUDENTS, toilet_templates),
     "study-objects": (FINDINGS, study_objects), "study-encoder": (FINDINGS, study_encoder),
     "study-pretrain": (FINDINGS, study_pretrain), "study-viewpoint": (FINDINGS, study_viewpoint),
     "step-breakdown": (PERFORMANCE, step_breakdown), "env-throughput": (PERFORMANCE, env_throughput),

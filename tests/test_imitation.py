@@ -767,7 +767,11 @@ def test_success_by_template_weights_objects_by_episodes_and_groups_the_held_out
     result = bench.by_template(runs)
     rows = {(row["split"], row["template"]): row for row in result["rows"]}
     assert set(rows) == {("seen", "A"), ("seen", "B"), ("seen", "all"), ("unseen", "A"), ("unseen", "B"),
-                         ("unseen", "C"), ("unseen", "all")}
+                         ("unseen", "C"), ("unseen", "all"), ("unseen", "held_out_bands")}
+    # the held-out-band half: the unseen objects of the seen templates, every one at 0.5 here
+    bands = [i for i in objects_lib.list_objects("laptop", "unseen") if i.template != "C"]
+    assert rows[("unseen", "held_out_bands")]["objects"] == len(bands) == 3
+    assert rows[("unseen", "held_out_bands")]["per_run"] == [0.5, 0.5]
     assert rows[("seen", "all")]["per_run"] == [0.5, 0.5] and rows[("seen", "all")]["objects"] == 11
     assert rows[("unseen", "C")]["per_run"] == [0.0, 1.0] and rows[("unseen", "C")]["success"] == 0.5
     assert rows[("seen", "A")]["per_run"] == [0.5, 0.5]

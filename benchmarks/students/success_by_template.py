@@ -13,7 +13,9 @@ or a PPO run's; ``--eval heldout_{split}_e10_seed1000.json`` reads ``paired_eval
 instead, and with ``--evaluate`` makes those that are missing) and the object catalog, and writes per
 split and template (and ``all``, the whole split): the success of each run (mean over that template's
 objects, each object weighted by its episodes), their mean and std, the objects and the episodes; and
-per object the success of each run. Without ``--evaluate`` no simulation: it takes seconds.
+per object the success of each run. The unseen split also gets the row ``held_out_bands``: its objects of
+the templates the seen split has (each with a parameter in a held-out band), the half that DexArt's own
+unseen split resembles (new instances of the shape families it trains on). Without ``--evaluate`` no simulation: it takes seconds.
 """
 
 from __future__ import annotations
@@ -53,12 +55,15 @@ def by_template(runs: list[Path], pattern: str = "eval_{split}.json") -> dict:
         raise ValueError(f"the runs are of different tasks: {sorted(tasks)}")
     task = tasks.pop()
     templates = {info.name: info.template for split in SPLITS for info in objects_lib.list_objects(task, split)}
+    seen_templates = {info.template for info in objects_lib.list_objects(task, "seen")}
     rows, per_object = [], {}
     for split in SPLITS:
         groups: dict[str, list[str]] = defaultdict(list)
         for name in evals[0][split]["objects"]:
             groups[templates[name]].append(name)
         groups["all"] = list(evals[0][split]["objects"])  # the split's overall success, same weighting
+        if split == "unseen":  # the held-out-band half alone (as rl.evaluate.by_template)
+            groups["held_out_bands"] = [name for name in evals[0][split]["objects"] if templates[name] in seen_templates]
         for template, names in sorted(groups.items()):
             per_run, episodes = [], 0
             for e in evals:

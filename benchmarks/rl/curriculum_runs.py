@@ -251,10 +251,11 @@ RECIPES["student_successonly_anchored_release_std05"] = at_std(RECIPES["student_
 #; the floor keeps a tenth of the anchor's weight instead of letting it go
 RECIPES["student_successonly_anchored_floor_reverse_d17_std05"] = at_std(
     RECIPES["student_successonly_anchored_floor_reverse_d17"], 0.05)
-# student_wide_anchored_floor_reverse_d17_std05: the toilets' recipe above from the wide students (RL on the seen
-# toilets only, as before)
-RECIPES["student_wide_anchored_floor_reverse_d17_std05"] = {
-    **RECIPES["student_successonly_anchored_floor_reverse_d17_std05"], "student": "wide"}
+# student_wide_anchored_floor_reverse_d34_std05: the toilets' recipe above from the wide students, with PPO on the
+# same training toilets as they (seen + wide) and one reverse-curriculum demonstration per training toilet
+RECIPES["student_wide_anchored_floor_reverse_d34_std05"] = {
+    **RECIPES["student_successonly_anchored_floor_reverse_d17_std05"], "student": "wide", "split": "seen_wide",
+    "curriculum_demos": 34}
 # the faucets' and laptops' headline point-cloud recipes from successonly students: their DAgger collections succeed
 # 0.68-0.89 in the last rounds (toilets: 0.51-0.74, where the filter lifted the students from 0.47 / 0.30 to
 # 0.68 / 0.31). Measured on faucets (`--students-only`): 0.65 / 0.64 held out against 0.70 / 0.64 without the filter,

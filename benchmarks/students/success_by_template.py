@@ -15,7 +15,8 @@ split and template (and ``all``, the whole split): the success of each run (mean
 objects, each object weighted by its episodes), their mean and std, the objects and the episodes; and
 per object the success of each run. The unseen split also gets the row ``held_out_bands``: its objects of
 the templates the seen split has (each with a parameter in a held-out band), the half that DexArt's own
-unseen split resembles (new instances of the shape families it trains on). Without ``--evaluate`` no simulation: it takes seconds.
+unseen split resembles (new instances of the shape families it trains on). Without ``--evaluate`` no
+simulation: it takes seconds.
 """
 
 from __future__ import annotations
@@ -63,7 +64,8 @@ def by_template(runs: list[Path], pattern: str = "eval_{split}.json") -> dict:
             groups[templates[name]].append(name)
         groups["all"] = list(evals[0][split]["objects"])  # the split's overall success, same weighting
         if split == "unseen":  # the held-out-band half alone (as rl.evaluate.by_template)
-            groups["held_out_bands"] = [name for name in evals[0][split]["objects"] if templates[name] in seen_templates]
+            groups["held_out_bands"] = [name for name in evals[0][split]["objects"]
+                                        if templates[name] in seen_templates]
         for template, names in sorted(groups.items()):
             per_run, episodes = [], 0
             for e in evals:

@@ -88,8 +88,8 @@ class DistillConfig:
     method: str = field(default="dagger", metadata={"help": "bc (demonstrations only) or dagger"})
     encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large; or depth_cnn, the "
                          "2-D baseline (a CNN on the 64x64 depth image of the same camera instead of the cloud)"})
-    split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + the wide "
-                       "split's extra toilets)"})
+    split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + "
+                       "the wide split's extra toilets)"})
     objects: str | None = field(default=None, metadata={"help": "comma-separated training objects (default: the split)"})
     demos: str | None = field(default=None, metadata={"help": "start from this `dexart-lite data demos` folder"})
     demo_episodes_per_object: int = field(default=4, metadata={"help": "expert episodes per object for BC"})

@@ -47,8 +47,8 @@ class PPOConfig:
     max_grad_norm: float = 0.5
     adam_eps: float = 1e-5
     normalize_advantage: bool = field(default=True, metadata={"help": "per minibatch, as SB3"})
-    split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + the wide "
-                       "split's extra toilets)"})
+    split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + "
+                       "the wide split's extra toilets)"})
     obs: str = field(default="cloud", metadata={"help": "cloud (DexArt: point cloud + state, PointNet) or state: a "
                      "diagnostic, the state vector plus the privileged object state and no camera, an MLP policy "
                      "(--encoder is then unused); it measures how learnable a task's reward is apart from perception"})

@@ -925,7 +925,7 @@ def test_distill_without_tank_writes_the_fields_it_documents(tmp_path, load_benc
     assert json.loads((tmp_path / "notank.json").read_text()) == json.loads(json.dumps(out))
     row, = out["per_seed"]
     assert Path(row["run"]).name == "toilet_cloud_student_notank_s0" and out["prob"] == 1.0
-    assert set(row["per_template"]) == {"seen_A", "seen_B", "unseen_A", "unseen_B", "unseen_C"}
+    assert set(row["per_template"]) == {"seen_A", "seen_B", "unseen_A", "unseen_B", "unseen_C", "unseen_held_out_bands"}
     assert {"command", "machine", "eval_episodes_per_object", "seen_success", "unseen_success"} <= out.keys()
     with pytest.raises(ValueError, match="--prob must be a probability"):
         bench.main(["--prob", "1.5"])

@@ -30,7 +30,7 @@ def test_wheel_ships_the_urdf_assets(tmp_path):
     wheel = next((tmp_path / "dist").glob("dexart_lite-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     assert "dexart_lite/urdf/allegro_hand_right.urdf" in names
-    assert sum(n.endswith("params.json") for n in names) == 82
+    assert sum(n.endswith("params.json") for n in names) == 82 + 17  # DexArt's splits + the toilets' wide split
     packages = {str(p.parent.relative_to(REPO)) for p in (REPO / "dexart_lite").rglob("__init__.py")}
     assert packages <= {str(Path(n).parent) for n in names}, "a subpackage is missing from setup.cfg"
     site = tmp_path / "site"

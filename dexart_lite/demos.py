@@ -57,7 +57,7 @@ FORMAT = "dexart_lite.demos"
 FORMAT_VERSION = 3  # 2: + privileged; 3: action stored as float64
 MANIFEST = "manifest.json"
 SAMPLES = "samples"  # the TensorDict.memmap folder inside OUT
-SPLITS = ("seen", "seen_half", "seen_wide", "unseen")
+SPLITS = (*objects_lib.TRAINING_SPLITS, "unseen")  # the training splits, and the unseen one for analyses
 MANIFEST_KEYS = ("task", "split", "objects", "num_points", "cloud_points", "state_dim", "samples", "episodes",
                  "expert_success_rate", "expert_mean_max_stage", "noise", "seed")
 ACTION_DIM = 22

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 import dexart_lite
+from dexart_lite import objects as objects_lib
 from dexart_lite.experts import SOLVERS, ScriptedPolicy, SynergyScriptedPolicy
 from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
 from dexart_lite.utils import check_choice
@@ -64,7 +65,7 @@ def solve(task: str, split: str = "seen", episodes_per_object: int = 3, seed: in
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, help=f"one of {', '.join(SOLVERS)}")
-    parser.add_argument("--split", default="seen", help="seen, unseen, seen_half, wide or seen_wide")
+    parser.add_argument("--split", default="seen", help=f"one of {', '.join(objects_lib.SPLITS)}")
     parser.add_argument("--episodes-per-object", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--expert", help="another expert's class name than the task's own (e.g. BucketSolver, the "

@@ -1,8 +1,11 @@
-"""What the benchmark scripts share and the package does not need: side-by-side runs of an earlier commit.
+"""What the benchmark scripts share and the package does not need: their common flags, one experiment runner,
+and side-by-side runs of an earlier commit.
 
 Benchmarks are scripts, not a package: a script loads this module by path,
 
     harness = sibling_script(__file__, "_harness")   # dexart_lite.utils.sibling_script
+    harness.options(parser, "task", "seeds", "jobs", json=RESULTS / "x.json")   # --task, --seeds, --jobs, --json
+    rows = harness.run_grid(measure, grid, jobs=args.jobs, path=args.json, summarise=summarise, settings=...)
     with harness.git_worktree(ROOT, "HEAD~3") as ref_root:
         rate = harness.run_in_checkout(ref_root, CODE, "laptop")
 
@@ -12,12 +15,91 @@ and the tests through ``load_benchmark("_harness")`` (tests/conftest.py).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
+
+from dexart_lite import TASKS
+from dexart_lite.cli import add_config_arguments
+from dexart_lite.objects import SPLITS
+
+
+@dataclass
+class Options:
+    """The flags the benchmark scripts share, one meaning each; a script takes those it needs with ``options``.
+    Settings of a learner or an env are not here: a script takes those from its config dataclass
+    (``add_config_arguments(parser, DistillConfig, names=[...])``)."""
+
+    task: str = field(default="laptop", metadata={"help": "the task", "choices": TASKS})
+    tasks: list[str] = field(default_factory=lambda: list(TASKS), metadata={"help": "the tasks", "choices": TASKS})
+    split: str = field(default="seen", metadata={"help": "the objects", "choices": list(SPLITS)})
+    splits: list[str] = field(default_factory=lambda: ["seen", "unseen"],
+                              metadata={"help": "the object splits", "choices": list(SPLITS)})
+    seed: int = field(default=0, metadata={"help": "the seed (env resets, noise, network initialisation)"})
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2], metadata={"help": "one run per seed"})
+    jobs: int = field(default=1, metadata={"help": "runs at once, one process each (2 on a 2-core machine)"})
+    episodes_per_object: int = field(default=3, metadata={"help": "episodes per object"})
+    eval_episodes: int = field(default=3, metadata={"help": "evaluation episodes per seen and unseen object"})
+    frames: int = field(default=100_000, metadata={"help": "environment frames per run"})
+    runs: Path = field(default=Path("runs"), metadata={"help": "parent of the per-run folders"})
+    json: Path | None = field(default=None, metadata={"help": "write the results here"})
+    note: str | None = field(default=None, metadata={"help": "a line stored in the JSON (e.g. how a run was stopped)"})
+
+
+def options(parser, *names: str, helps: dict | None = None, **defaults) -> None:
+    """Add the ``Options`` flags ``names`` (and those given a default here) to ``parser``:
+    ``options(parser, "task", "jobs", seeds=[0], json=RESULTS / "x.json")`` adds ``--task``, ``--jobs``,
+    ``--seeds`` (default 0) and ``--json``. ``helps``: a script's own help line for a flag."""
+    add_config_arguments(parser, Options, names=[*names, *defaults], overrides=False, defaults=defaults, helps=helps)
+
+
+def run_grid(job, grid: list[dict], *, jobs: int = 1, path: Path | None = None, summarise=None,
+             settings: dict | None = None, rows_key: str = "rows", desc: str = "runs") -> list[dict]:
+    """The one experiment runner: ``job(**params)`` for every ``params`` of ``grid`` (seeds x settings), ``jobs``
+    at once (one spawned process each; a stopped runner stops them all), rows returned in the grid's order, each
+    ``{**params, **job(...)}``.
+
+    With ``path``, it is resumable: after every finished row ``summarise(rows)`` (a dict; the finished rows go
+    under ``rows_key``, with ``settings`` beside them) is written to ``path``, and a later call with the same
+    ``settings`` reads those rows back instead of running them again. A training job is resumable on its own
+    as well (``study.run_arm`` continues a run from its folder)."""
+    from tqdm import tqdm
+
+    from dexart_lite.utils import process_pool, sigterm_interrupts, write_json
+
+    settings = settings or {}
+    earlier = json.loads(path.read_text()) if path is not None and path.exists() else {}
+    reusable = earlier.get(rows_key, []) if earlier.get("settings") == settings else []
+    rows = [next((r for r in reusable if all(r.get(k) == v for k, v in params.items())), None) for params in grid]
+    todo = [i for i, row in enumerate(rows) if row is None]
+    if len(todo) < len(grid):
+        print(f"{path}: {len(grid) - len(todo)} of {len(grid)} rows read back (same settings)")
+
+    def finished(i: int, row: dict) -> None:
+        rows[i] = {**grid[i], **row}
+        if path is not None:
+            done = [r for r in rows if r is not None]
+            write_json(path, {**(summarise(done) if summarise else {}), rows_key: done, "settings": settings})
+
+    bar = tqdm(total=len(todo), desc=desc, unit="run", disable=len(todo) < 2)
+    with sigterm_interrupts(), process_pool(max(1, jobs)) if jobs > 1 else contextlib.nullcontext() as pool:
+        calls = [dict(grid[i]) for i in todo]
+        results = pool.map(_call, [job] * len(calls), calls) if pool else (job(**params) for params in calls)
+        for i, row in zip(todo, results):
+            finished(i, row)
+            bar.update()
+    bar.close()
+    return rows
+
+
+def _call(job, params: dict):
+    """``job(**params)`` in a pool's worker (``Executor.map`` passes positional arguments only)."""
+    return job(**params)
 
 
 def run_in_checkout(root, code: str, *args: str) -> dict:

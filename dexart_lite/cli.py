@@ -14,6 +14,7 @@ import argparse
 import dataclasses
 import importlib
 import sys
+import types
 import typing
 
 # subcommand -> (module, one-line help)
@@ -36,28 +37,48 @@ USER_ERRORS = (ValueError, FileNotFoundError, KeyError, RuntimeError, OSError)
 
 
 def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, given_only: bool = False,
-                         default_label: str = "default", overrides: bool = True) -> None:
+                         default_label: str = "default", overrides: bool = True, defaults: dict | None = None,
+                         helps: dict | None = None) -> None:
     """One ``--flag-name`` per field of the dataclass ``config_cls`` (or of its fields in ``names``), typed from
-    its annotation (``int | None`` -> int), with the field's ``metadata["help"]`` and "(default_label: value)";
-    booleans get ``--flag`` / ``--no-flag``. ``given_only``: every flag defaults to None, so that the caller can
-    tell the flags given from the rest (a preset, or another config's defaults, then fills those in).
+    its annotation (``int | None`` -> int; ``list[int]`` -> one or more ints), with the field's
+    ``metadata["help"]`` (or ``helps[name]``), its ``metadata["choices"]`` and "(default_label: value)";
+    booleans get ``--flag`` / ``--no-flag``. ``defaults``: other defaults than the dataclass's, by field name.
+    ``given_only``: every flag defaults to None, so that the caller can tell the flags given from the rest (a
+    preset, or another config's defaults, then fills those in).
     ``overrides``: also ``--set FIELD=VALUE ...``, the spelling the benchmark scripts and ``study`` take (a
     benchmark's ``--set`` can be pasted into a command), applied after the flags by ``config_from_args``."""
     if overrides:
         parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
                             help=f"more {config_cls.__name__} fields, typed like their defaults (after the flags)")
-    hints = typing.get_type_hints(config_cls)
+    hints, defaults, helps = typing.get_type_hints(config_cls), defaults or {}, helps or {}
+    unknown = set(defaults) - {f.name for f in dataclasses.fields(config_cls)}
+    if unknown:
+        raise ValueError(f"defaults for fields {config_cls.__name__} lacks: {sorted(unknown)}")
     for f in dataclasses.fields(config_cls):
         if names is not None and f.name not in names:
             continue
         flag = "--" + f.name.replace("_", "-")
-        help_text = f.metadata.get("help", "") + f" ({default_label}: {f.default})"
-        default = None if given_only else f.default
+        value = defaults.get(f.name, f.default if f.default is not dataclasses.MISSING else
+                             f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        help_text = helps.get(f.name, f.metadata.get("help", "")) + f" ({default_label}: {_shown(value)})"
+        default = None if given_only else value
+        choices = f.metadata.get("choices")
         if hints[f.name] is bool:
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=default, help=help_text)
+            continue
+        hint = hints[f.name]
+        kinds = ([k for k in typing.get_args(hint) if k is not type(None)]
+                 if typing.get_origin(hint) in (typing.Union, types.UnionType) else [hint])
+        if typing.get_origin(kinds[0]) in (list, tuple):  # list[int], tuple[str, ...]: one or more values
+            parser.add_argument(flag, type=typing.get_args(kinds[0])[0], nargs="+", default=default, help=help_text,
+                                choices=choices)
         else:
-            kinds = [k for k in typing.get_args(hints[f.name]) if k is not type(None)] or [hints[f.name]]
-            parser.add_argument(flag, type=kinds[0], default=default, help=help_text)
+            parser.add_argument(flag, type=kinds[0], default=default, help=help_text, choices=choices)
+
+
+def _shown(value) -> str:
+    """A default as a command line would spell it: ``[0, 1]`` -> ``0 1``."""
+    return " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
 
 
 def given_fields(config_cls, args: argparse.Namespace) -> dict:

@@ -6,6 +6,7 @@ import contextlib
 import functools
 import os
 import signal
+import sys
 import threading
 
 
@@ -37,8 +38,6 @@ def machine_info() -> dict:
 
 def command_line(script: str, argv: list[str] | None = None) -> str:
     """How a benchmark was run, for its JSON: ``python <script> <args>`` (``argv`` None: this process's)."""
-    import sys
-
     return " ".join(["python", script, *(sys.argv[1:] if argv is None else argv)])
 
 
@@ -88,6 +87,7 @@ def sibling_script(script_file: str, name: str):
         path = path.parent.with_name(f"{name}.py")
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # where @dataclass and pickle look a module up
     spec.loader.exec_module(module)
     return module
 
@@ -199,8 +199,6 @@ def resolve_device(name: str, log=None):
     """``--device``: the ``torch.device`` the networks, losses and optimizers live on. ``cuda`` on a machine
     without CUDA is an error, never a silent fallback; ``auto`` takes cuda where it exists, else cpu, and says
     which through ``log`` (default: stderr). Collection always runs on the CPU."""
-    import sys
-
     import torch
 
     check_choice("device", name, DEVICES)

@@ -3,6 +3,7 @@
 import importlib.util
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -27,6 +28,7 @@ def load_benchmark():
         path, = [*folder.glob(f"*/{name}.py"), *folder.glob(f"{name}.py")]  # benchmarks/[<theme>/]<name>.py
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # where @dataclass and pickle look a module up
         spec.loader.exec_module(module)
         return module
 

@@ -2,8 +2,11 @@
 (which hide a circle from Python but not from a reader)."""
 
 import ast
+import json
 import re
 from pathlib import Path
+
+import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "dexart_lite"
 
@@ -136,3 +139,44 @@ def test_benchmarks_live_in_theme_folders_and_record_their_provenance():
     record = provenance(str(script), ["--task", "laptop"])
     assert record["command"] == "python benchmarks/perf/bench_sim.py --task laptop"
     assert set(record) == {"command", "machine", "fast_mode"} and record["machine"]["cores"] >= 1
+
+
+def test_benchmark_runner_resumes_rows_of_the_same_settings(tmp_path, load_benchmark):
+    """``_harness.run_grid``, the benchmarks' one experiment runner: rows come back in the grid's order, each its
+    parameters plus the job's result; the JSON written after every row is read back by a later call with the
+    same settings (only the missing rows run) and ignored under other settings (every row runs again)."""
+    harness = load_benchmark("_harness")
+    calls = []
+
+    def job(seed, x):
+        calls.append((seed, x))
+        return {"y": 10 * seed + x}
+
+    path, grid = tmp_path / "grid.json", [{"seed": s, "x": x} for s in (0, 1) for x in (1, 2)]
+    rows = harness.run_grid(job, grid, path=path, settings={"episodes": 3}, summarise=lambda done: {"n": len(done)})
+    assert rows == [{**p, "y": 10 * p["seed"] + p["x"]} for p in grid] and calls == [(0, 1), (0, 2), (1, 1), (1, 2)]
+    written = json.loads(path.read_text())
+    assert (written["n"], written["rows"], written["settings"]) == (4, rows, {"episodes": 3})
+    calls.clear()
+    more = harness.run_grid(job, [*grid, {"seed": 2, "x": 1}], path=path, settings={"episodes": 3})
+    assert calls == [(2, 1)] and more[:4] == rows and more[4]["y"] == 21
+    calls.clear()
+    harness.run_grid(job, grid, path=path, settings={"episodes": 5})
+    assert calls == [(0, 1), (0, 2), (1, 1), (1, 2)]
+
+
+def test_benchmark_options_share_one_meaning(load_benchmark):
+    """``_harness.options``: the shared flags, typed from ``Options`` (lists take several values), with a script's
+    own defaults; a task outside the package's is refused by argparse, naming the choices."""
+    import argparse
+
+    harness = load_benchmark("_harness")
+    parser = argparse.ArgumentParser()
+    harness.options(parser, "task", "jobs", seeds=[0], json=Path("x.json"))
+    args = parser.parse_args(["--seeds", "3", "4", "--jobs", "2"])
+    assert (args.task, args.seeds, args.jobs, args.json) == ("laptop", [3, 4], 2, Path("x.json"))
+    assert parser.parse_args([]).seeds == [0]
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--task", "kettle"])
+    with pytest.raises(ValueError, match="Options lacks.*'sede'"):
+        harness.options(argparse.ArgumentParser(), sede=1)

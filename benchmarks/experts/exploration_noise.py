@@ -22,6 +22,7 @@ next to it (success and mean return against ``sigma``, one line per split, means
 from __future__ import annotations
 
 import argparse
+import functools
 import time
 from pathlib import Path
 
@@ -31,39 +32,36 @@ from dexart_lite.objects import list_objects
 from dexart_lite.experts import SOLVERS
 from dexart_lite.experts.solve import solve
 from dexart_lite.rollout import NOISE_PARTS
-from dexart_lite.utils import fast_mode, provenance, save_figure, write_json
+from dexart_lite.utils import fast_mode, provenance, save_figure, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 SIGMAS = (0.0, 0.1, 0.3, 0.5, 1.0)
 
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=list(SOLVERS))
-    parser.add_argument("--splits", nargs="+", default=["seen"], help="seen, unseen, seen_half")
-    parser.add_argument("--episodes-per-object", type=int, default=2)
+    harness.options(parser, "task", "jobs", splits=["seen"], episodes_per_object=2, seeds=[0],
+                    helps={"seeds": "one solve per seed (its own reset seeds and noise draws); the table adds their "
+                                    "mean", "json": "write the results here (and the PNG next to it); a run stopped "
+                                    "half-way continues from it"})
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(SIGMAS), help="noise std per action dim")
-    parser.add_argument("--seeds", "--seed", dest="seeds", type=int, nargs="+", default=[0],
-                        help="one solve per seed (its own reset seeds and noise draws); the table adds their mean")
     parser.add_argument("--expert", help="another expert of the task than its own, by class name "
                         "(dexart_lite.experts.TASK_EXPERTS)")
     parser.add_argument("--noise-part", default="all", choices=list(NOISE_PARTS),
                         help="the action dimensions perturbed: all, arm (the palm twist) or hand (the joint targets)")
-    parser.add_argument("--json", type=Path, help="write the results here (and the PNG next to it)")
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.sigmas, args.episodes_per_object = [0.0, 1.0], 1
 
-    rows = []
-    for split in args.splits:
-        object_names = [list_objects(args.task, split)[0].name] if fast_mode() else None
-        for sigma in args.sigmas:
-            for seed in args.seeds:
-                start = time.perf_counter()
-                res = solve(args.task, split, args.episodes_per_object, seed, object_names=object_names,
-                            progress=not fast_mode(), action_noise=sigma, expert=args.expert,
-                            noise_part=args.noise_part)
-                res["wall_time_s"] = time.perf_counter() - start
-                rows.append(res)
+    grid = [{"split": split, "action_noise": sigma, "seed": seed}
+            for split in args.splits for sigma in args.sigmas for seed in args.seeds]
+    settings = {"task": args.task, "expert": args.expert, "noise_part": args.noise_part,
+                "episodes_per_object": args.episodes_per_object, "fast": fast_mode()}
+    rows = harness.run_grid(functools.partial(measure, args.task, args.episodes_per_object, args.expert,
+                                              args.noise_part), grid, jobs=args.jobs, path=args.json,
+                            settings=settings, desc="solves")
     summary = mean_over_seeds(rows)
 
     print(f"| split | noise std | seed | success ({args.task}) | mean max stage | steps in stage 1 / 2 / 3 "
@@ -80,13 +78,22 @@ def main(argv=None) -> dict:
                   f"{r['success_std']:.2f} | {r['mean_max_stage']:.2f} | | {r['mean_return']:.1f} |")
     result = {"task": args.task, "expert": rows[0]["expert"], "noise_part": args.noise_part, "splits": args.splits,
               "episodes_per_object": args.episodes_per_object, "seeds": args.seeds, "rows": rows,
-              "mean_over_seeds": summary,
-              **provenance(__file__, argv)}
+              "mean_over_seeds": summary, "settings": settings, **provenance(__file__, argv)}
     if args.json:
         write_json(args.json, result)
         plot(summary, args.json.with_suffix(".png"), f"{args.task} ({rows[0]['expert']}) + Gaussian action noise")
         print(f"wrote {args.json} and {args.json.with_suffix('.png')}")
     return result
+
+
+def measure(task: str, episodes_per_object: int, expert: str | None, noise_part: str, split: str,
+            action_noise: float, seed: int) -> dict:
+    """One solve of ``split`` at noise std ``action_noise`` and ``seed`` (fast mode: its first object alone)."""
+    object_names = [list_objects(task, split)[0].name] if fast_mode() else None
+    start = time.perf_counter()
+    res = solve(task, split, episodes_per_object, seed, object_names=object_names, progress=not fast_mode(),
+                action_noise=action_noise, expert=expert, noise_part=noise_part)
+    return {**res, "wall_time_s": time.perf_counter() - start}
 
 
 def mean_over_seeds(rows: list[dict]) -> list[dict]:

@@ -46,6 +46,7 @@ class Options:
     episodes_per_object: int = field(default=3, metadata={"help": "episodes per object"})
     eval_episodes: int = field(default=3, metadata={"help": "evaluation episodes per seen and unseen object"})
     frames: int = field(default=100_000, metadata={"help": "environment frames per run"})
+    epochs: int = field(default=10, metadata={"help": "passes over the training data"})
     runs: Path = field(default=Path("runs"), metadata={"help": "parent of the per-run folders"})
     json: Path | None = field(default=None, metadata={"help": "write the results here"})
     note: str | None = field(default=None, metadata={"help": "a line stored in the JSON (e.g. how a run was stopped)"})

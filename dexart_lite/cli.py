@@ -53,7 +53,8 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
     hints, defaults, helps = typing.get_type_hints(config_cls), defaults or {}, helps or {}
     unknown = set(defaults) - {f.name for f in dataclasses.fields(config_cls)}
     if unknown:
-        raise ValueError(f"defaults for fields {config_cls.__name__} lacks: {sorted(unknown)}")
+        raise ValueError(f"{config_cls.__name__} has no field {sorted(unknown)} to give a default; its fields: "
+                         f"{', '.join(f.name for f in dataclasses.fields(config_cls))}")
     for f in dataclasses.fields(config_cls):
         if names is not None and f.name not in names:
             continue

@@ -2,7 +2,7 @@
 from scratch, and the PPO-fine-tuned encoder put back under the segmentation head.
 
     # 1. per task: DAM data (seen + unseen), segmentation pretraining, mIoU on seen / unseen objects
-    python benchmarks/pretraining/pretraining_evidence.py seg --tasks faucet,bucket,laptop,toilet
+    python benchmarks/pretraining/pretraining_evidence.py seg --tasks faucet bucket laptop toilet
     # 2. Laptop PPO, pretrained vs. scratch: same frames, same seeds, same settings otherwise
     python benchmarks/pretraining/pretraining_evidence.py ppo --task laptop --frames 100000 --seeds 0
     # 3. the fine-tuned encoder of the pretrained arm under the segmentation head it started with
@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import torch
@@ -29,8 +28,12 @@ from dexart_lite.models.pointnet import PointNetEncoder, load_encoder
 from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.pretrain.figures import plot_segmentation
-from dexart_lite.registration import TASKS
-from dexart_lite.utils import benchmark_results, provenance, save_figure
+from dexart_lite.cli import add_config_arguments
+from dexart_lite.rl.ppo import PPOConfig
+from dexart_lite.study import run_arm
+from dexart_lite.utils import benchmark_results, provenance, save_figure, sibling_script
+
+harness = sibling_script(__file__, "_harness")
 
 CLASS_WEIGHTS = {"bucket": "3,1,1,1"}  # DexArt's segmentation weights (functional part up-weighted)
 FIGURE_CLOUDS = 2  # per split in the true-vs-predicted pictures
@@ -66,7 +69,7 @@ def run_seg(args) -> int:
     results = args.results / "seg_miou.json"
     if results.exists():
         rows = json.loads(results.read_text())["tasks"]
-    for task in args.tasks.split(","):
+    for task in args.tasks:
         data_root = dataset_dir(args.root, task)
         if not (data_root / "unseen" / datasets.MANIFEST).exists():
             datasets.generate_dam(datasets.DamConfig(task=task, split="all", samples_per_object=args.samples_per_object,
@@ -117,26 +120,16 @@ def run_ppo(args) -> int:
     arms = {"scratch": None, "pretrained": str(encoder)}
     summary = {"task": args.task, "frames": args.frames, "seeds": args.seeds, "preset": args.preset,
                "eval_episodes_per_object": args.eval_episodes, **args.provenance, "arms": {}}
-    for arm, pretrained in arms.items():
-        summary["arms"][arm] = {"runs": []}
-        for seed in args.seeds:
-            out = ppo_dir(args.root, arm, args.task, seed)
-            if not (out / "eval_unseen.json").exists():
-                start = time.perf_counter()
-                ppo.train(ppo.preset(args.preset, task=args.task, frames=args.frames, seed=seed, out=str(out),
-                                     pretrained=pretrained, eval_episodes=args.eval_episodes, workers=args.workers,
-                                     resume=(out / ppo.CHECKPOINT).exists()))
-                print(f"{arm} seed {seed}: {(time.perf_counter() - start) / 60:.1f} min", flush=True)
-            history = ppo.load_checkpoint(out / ppo.CHECKPOINT)["history"]
-            evals = {s: json.loads((out / f"eval_{s}.json").read_text()) for s in ("seen", "unseen")}
-            summary["arms"][arm]["runs"].append({
-                "seed": seed, "out": str(out), "success_seen": evals["seen"]["success_rate"],
-                "success_unseen": evals["unseen"]["success_rate"],
-                "wall_minutes": round(history[-1]["wall_s"] / 60, 1),
-                "curve": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "progress")} for h in history]})
-        runs = summary["arms"][arm]["runs"]
-        for split in ("seen", "unseen"):
-            summary["arms"][arm][f"success_{split}"] = sum(r[f"success_{split}"] for r in runs) / len(runs)
+    grid = [{"arm": arm, "seed": seed, "cfg": ppo.preset(args.preset, task=args.task, frames=args.frames, seed=seed,
+                                                         out=str(ppo_dir(args.root, arm, args.task, seed)),
+                                                         pretrained=pretrained, eval_episodes=args.eval_episodes,
+                                                         workers=args.workers)}
+            for arm, pretrained in arms.items() for seed in args.seeds]
+    rows = harness.run_grid(ppo_run, grid, desc="PPO runs")
+    for arm in arms:
+        runs = [{k: v for k, v in r.items() if k not in ("arm", "cfg")} for r in rows if r["arm"] == arm]
+        summary["arms"][arm] = {"runs": runs, **{f"success_{split}": sum(r[f"success_{split}"] for r in runs) / len(runs)
+                                                 for split in ("seen", "unseen")}}
     args.results.mkdir(parents=True, exist_ok=True)
     name = f"ppo_{args.task}_pretrained_vs_scratch"
     (args.results / f"{name}.json").write_text(json.dumps(summary, indent=2) + "\n")
@@ -144,6 +137,16 @@ def run_ppo(args) -> int:
     for arm, r in summary["arms"].items():
         print(f"{arm}: success seen {r['success_seen']:.2f}, unseen {r['success_unseen']:.2f}")
     return 0
+
+
+def ppo_run(arm: str, seed: int, cfg) -> dict:
+    """One PPO run through ``study.run_arm`` (trained, continued from its checkpoint, or read back)."""
+    record = run_arm(cfg)
+    print(f"{arm} seed {seed}: {record['wall_time_s'] / 60:.1f} min", flush=True)
+    return {"out": cfg.out, "success_seen": record["seen_success"], "success_unseen": record["unseen_success"],
+            "wall_minutes": round(record["wall_time_s"] / 60, 1),
+            "curve": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "progress")}
+                      for h in record["history"]]}
 
 
 def plot_ppo(summary: dict, path: Path) -> Path:
@@ -243,25 +246,18 @@ def main(argv=None) -> int:
     parser.add_argument("--results", type=Path, default=benchmark_results(__file__))
     sub = parser.add_subparsers(dest="step", required=True)
     seg = sub.add_parser("seg", help="DAM data + segmentation pretraining + mIoU per task")
-    seg.add_argument("--tasks", default=",".join(TASKS))
+    harness.options(seg, "tasks")
     seg.add_argument("--samples-per-object", type=int, default=datasets.DEFAULT_DAM_SAMPLES)
-    seg.add_argument("--epochs", type=int, default=10)
-    seg.add_argument("--seed", type=int, default=0)
+    harness.options(seg, "seed", epochs=10)
     ppo_parser = sub.add_parser("ppo", help="PPO from the segmentation encoder vs. from scratch")
-    ppo_parser.add_argument("--task", default="laptop")
-    ppo_parser.add_argument("--frames", type=int, default=100_000)
-    ppo_parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    harness.options(ppo_parser, "task", frames=100_000, seeds=[0], eval_episodes=4)
+    add_config_arguments(ppo_parser, PPOConfig, names=["workers"], defaults={"workers": 2}, overrides=False)
     ppo_parser.add_argument("--preset", default="cpu")
-    ppo_parser.add_argument("--workers", type=int, default=2)
-    ppo_parser.add_argument("--eval-episodes", type=int, default=4, help="per object, seen and unseen")
     after = sub.add_parser("after-ppo", help="the PPO-fine-tuned encoder under the segmentation head")
-    after.add_argument("--task", default="laptop")
-    after.add_argument("--seed", type=int, default=0)
+    harness.options(after, "task", "seed")
     methods = sub.add_parser("methods", help="cls, recon and simsiam runs with their metrics")
-    methods.add_argument("--task", default="laptop")
-    methods.add_argument("--epochs", type=int, default=5)
+    harness.options(methods, "task", "seed", epochs=5)
     methods.add_argument("--object-samples", type=int, default=datasets.DEFAULT_OBJECT_SAMPLES)
-    methods.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     args.provenance = provenance(__file__, argv)  # recorded in every JSON a step writes
     return {"seg": run_seg, "ppo": run_ppo, "after-ppo": run_after_ppo, "methods": run_methods}[args.step](args)

@@ -32,14 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-import dexart_lite
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 from dexart_lite.rl.evaluate import evaluate, evaluate_many
 from dexart_lite.study import run_arm
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
+from dexart_lite.utils import (benchmark_results, fast_mode, parse_overrides, provenance, save_figure, sibling_script,
+                               write_json)
 
 RESULTS = benchmark_results(__file__)
+harness = sibling_script(__file__, "_harness")
 SPLITS = ("seen", "unseen")
 KEEP = ("frames", "batch", "success_rate", "episode_return", "stage2_frac", "stage3_frac", "progress",
         "loss_objective", "loss_critic", "explained_variance", "kl_approx", "clip_fraction", "log_std",
@@ -64,13 +65,15 @@ def student_success(student: Path, cfg: ppo.PPOConfig) -> dict:
     return out
 
 
-def run_seed(cfg: ppo.PPOConfig, student: Path) -> dict:
-    """One seed through the one multi-seed runner (``study.run_arm``): trained, continued from its checkpoint, or
-    read back when its folder holds a finished run with the same settings; with the student's success."""
+def run_seed(seed: int, student: str, cfg: ppo.PPOConfig) -> dict:
+    """One seed through ``study.run_arm``: trained, continued from its checkpoint, or read back when its folder
+    holds a finished run with the same settings; with the student's success."""
     record = run_arm(cfg)
     if record["resumed"]:
         print(f"{cfg.out}: finished before, read back")
-    before = student_success(student, cfg)
+    before = student_success(Path(student), cfg)
+    print(f"seed {seed}: student {before['seen']:.2f} / {before['unseen']:.2f} -> PPO {record['seen_success']:.2f} / "
+          f"{record['unseen_success']:.2f} (seen / unseen), {record['wall_time_s'] / 60:.1f} min")
     return {"student_seen": before["seen"], "student_unseen": before["unseen"],
             "seen_success": record["seen_success"], "unseen_success": record["unseen_success"],
             "frames": record["frames"], "wall_time_s": record["wall_time_s"], "resumed": record["continued"],
@@ -109,19 +112,18 @@ def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    harness.options(parser, "task", seeds=[0, 1])
     parser.add_argument("--students", required=True, help="student run folder per seed, with {seed}")
-    parser.add_argument("--frames", type=int, default=300_000, help="PPO frames per seed")
-    parser.add_argument("--runs", type=Path, default=Path("runs"), help="parent of the per-seed run folders")
+    harness.options(parser, "runs", frames=300_000, helps={"frames": "PPO frames per seed"})
     parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
                         help="PPOConfig fields to change from the finetune preset, e.g. critic_warmup=0")
     parser.add_argument("--variant", default="", help="a name for --set, in the run folders")
-    parser.add_argument("--json", type=Path, help="default benchmarks/results/rl/finetune_<task>.json")
+    harness.options(parser, json=None, helps={"json": "default benchmarks/results/rl/finetune_<task>.json"})
     parser.add_argument("--heldout-episodes", type=int, default=0,
                         help="also evaluate students and final policies with this many episodes per object")
     parser.add_argument("--heldout-seed", type=int, default=1000, help="env seed of the held-out evaluation")
-    parser.add_argument("--jobs", type=int, default=1, help="held-out evaluations run side by side")
+    harness.options(parser, "jobs", helps={"jobs": "held-out evaluations run side by side (training: one seed at "
+                                                   "a time)"})
     args = parser.parse_args(argv)
     requested = parse_overrides(args.overrides, ppo.PPOConfig)
     if requested and not args.variant:
@@ -134,17 +136,14 @@ def main(argv=None) -> dict:
         if args.json is None:
             path = args.runs / "bench_finetune_fast.json"
 
-    per_seed = []
-    for seed in args.seeds:
-        student = Path(args.students.format(seed=seed))
+    def config(seed: int) -> ppo.PPOConfig:
         name = "_".join(filter(None, ("finetune", args.task, args.variant, f"s{seed}")))
-        cfg = ppo.preset("finetune", task=args.task, frames=args.frames, seed=seed, out=str(args.runs / name),
-                         init_from=str(student / "checkpoint.pt"), **overrides)
-        per_seed.append({"seed": seed, "student": str(student), **run_seed(cfg, student)})
-        r = per_seed[-1]
-        print(f"seed {seed}: student {r['student_seen']:.2f} / {r['student_unseen']:.2f} -> PPO "
-              f"{r['seen_success']:.2f} / {r['unseen_success']:.2f} (seen / unseen), {r['wall_time_s'] / 60:.1f} min")
+        student = args.students.format(seed=seed)
+        return ppo.preset("finetune", task=args.task, frames=args.frames, seed=seed, out=str(args.runs / name),
+                          init_from=str(Path(student) / "checkpoint.pt"), **overrides)
 
+    grid = [{"seed": seed, "student": args.students.format(seed=seed), "cfg": config(seed)} for seed in args.seeds]
+    per_seed = [{k: v for k, v in row.items() if k != "cfg"} for row in harness.run_grid(run_seed, grid, desc="seeds")]
     mean = lambda key: float(np.mean([r[key] for r in per_seed]))  # noqa: E731
     std = lambda key: float(np.std([r[key] for r in per_seed]))  # noqa: E731
     result = {"task": args.task, "seeds": args.seeds, "preset": "finetune", "variant": args.variant,

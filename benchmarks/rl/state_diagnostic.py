@@ -27,6 +27,7 @@ normalisation from 2,000 steps of the initial policy (``obs_norm_steps``), so th
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import time
 from pathlib import Path
@@ -36,12 +37,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-import dexart_lite  # noqa: E402
 from dexart_lite.rl.ppo import PRESETS, PPOConfig  # noqa: E402
 from dexart_lite.utils import (benchmark_results, fast_mode, parse_overrides, provenance, save_figure,  # noqa: E402
                                sibling_script, write_json)
 
 RESULTS = benchmark_results(__file__)
+harness = sibling_script(__file__, "_harness")
 # --preset cpu: departures from the cpu preset, as the laptop state-only runs of docs/results/ppo.md (bench_learning
 # --set and --init-log-std); --preset fast: the fast preset, which holds them, on the state observation
 SETTINGS = {"cpu": ["obs=state", "lr=3e-4", "reward_scale=0.01"], "fast": ["obs=state"],
@@ -121,32 +122,33 @@ def plot(result: dict, path: Path) -> None:
     save_figure(fig, path)
 
 
+def state_run(frames: int, eval_episodes: int, preset: str, results: Path, task: str, seed: int) -> dict:
+    """One task and seed: ``bench_learning.py``'s run, or its JSON read back when one with these settings exists."""
+    name = f"learning_{task}_{run_tag(seed, preset)}"
+    summary = None if fast_mode() else finished(results / f"{name}.json", frames, eval_episodes, preset)
+    if summary is not None:
+        return summarise_run(summary, seed, read_back=True)
+    runs_dir = results / "runs" if fast_mode() else Path("runs")  # a smoke run stays beside its JSON
+    bench = sibling_script(__file__, "bench_learning")
+    summary = bench.main(run_args(task, seed, frames, eval_episodes, results, runs_dir / name, preset))
+    return summarise_run(summary, seed, read_back=False)
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=list(dexart_lite.TASKS), choices=dexart_lite.TASKS)
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
-    parser.add_argument("--frames", type=int, default=300_000)
-    parser.add_argument("--eval-episodes", type=int, default=2, help="per object, seen and unseen")
+    harness.options(parser, "tasks", seeds=[0, 1], frames=300_000, eval_episodes=2)
     parser.add_argument("--preset", default="cpu", choices=list(SETTINGS),
                         help="cpu: DexArt's PPO with the departures above; fast: plus the input normalisation; "
                              "fast_sil: plus self-imitation learning; fast_synergy: fast with the 3-synergy hand")
-    parser.add_argument("--json", type=Path, default=RESULTS / "state_diagnostic.json")
+    harness.options(parser, json=RESULTS / "state_diagnostic.json")
     args = parser.parse_args(argv)
-    results = args.json.parent
-    bench = sibling_script(__file__, "bench_learning")
-    start, tasks = time.perf_counter(), {}
+    start = time.perf_counter()
+    grid = [{"task": task, "seed": seed} for task in args.tasks for seed in args.seeds]
+    rows = harness.run_grid(functools.partial(state_run, args.frames, args.eval_episodes, args.preset,
+                                              args.json.parent), grid, desc="runs")
+    tasks = {}
     for task in args.tasks:
-        runs = []
-        for seed in args.seeds:
-            name = f"learning_{task}_{run_tag(seed, args.preset)}"
-            path = results / f"{name}.json"
-            summary = None if fast_mode() else finished(path, args.frames, args.eval_episodes, args.preset)
-            read_back = summary is not None
-            if summary is None:
-                runs_dir = results / "runs" if fast_mode() else Path("runs")  # a smoke run stays beside its JSON
-                out = runs_dir / name
-                summary = bench.main(run_args(task, seed, args.frames, args.eval_episodes, results, out, args.preset))
-            runs.append(summarise_run(summary, seed, read_back))
+        runs = [{k: v for k, v in r.items() if k != "task"} for r in rows if r["task"] == task]
         firsts = [r["frames_to_first_success"] for r in runs]
         tasks[task] = {"per_seed": runs, "frames_to_first_success": firsts,
                        "seeds_with_a_success": sum(f is not None for f in firsts),

@@ -28,9 +28,13 @@ import numpy as np
 
 import dexart_lite
 from dexart_lite.experts import SOLVERS
-from dexart_lite.imitation.distill import METHODS, DistillConfig
+from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.study import run_arm
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, save_figure, write_json
+from dexart_lite.cli import add_config_arguments
+from dexart_lite.utils import (benchmark_results, fast_mode, parse_overrides, provenance, save_figure, sibling_script,
+                               write_json)
+
+harness = sibling_script(__file__, "_harness")
 
 RESULTS = benchmark_results(__file__)
 # DexArt Table 2, PPO without pre-training, success seen / unseen (mean over 3 seeds), for reference only
@@ -38,25 +42,23 @@ PAPER_RL_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop"
 
 
 def run_seed(cfg: DistillConfig) -> dict:
-    """One seed through the one multi-seed runner (``study.run_arm``): trained, or read back when its folder
-    holds a finished run with the same settings."""
+    """One seed through ``study.run_arm``: trained, or read back when its folder holds a finished run with the same
+    settings."""
     result = run_arm(cfg)
     if result["resumed"]:
         print(f"{cfg.out}: finished before, read back")
+    print(f"seed {cfg.seed}: seen {result['seen_success']:.2f}, unseen {result['unseen_success']:.2f}, "
+          f"{result['wall_time_s'] / 60:.1f} min")
     return result
 
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--method", default="dagger", choices=METHODS)
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--encoder", default="small")
-    parser.add_argument("--runs", type=Path, default=Path("runs"), help="parent of the per-seed run folders")
-    parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
-                        help="DistillConfig fields to change from the defaults, e.g. drop_state=palm_velocity")
+    add_config_arguments(parser, DistillConfig, names=["task", "method", "encoder"])  # and --set FIELD=VALUE ...
+    harness.options(parser, "runs", seeds=[0, 1, 2], jobs=1,
+                    helps={"jobs": "seeds at once (1: each seed alone, so its wall_time_s is its own)"})
     parser.add_argument("--variant", default="", help="a name for --set, in the run folders (distill_<task>_<method>_<variant>_s<seed>)")
-    parser.add_argument("--json", type=Path, help="default benchmarks/results/students/distill_<task>.json")
+    harness.options(parser, helps={"json": "default benchmarks/results/students/distill_<task>.json"}, json=None)
     parser.add_argument("--collect", type=Path, nargs="+", metavar="RUN_DIR",
                         help="summarise these finished `dexart-lite distill` folders instead of running seeds")
     args = parser.parse_args(argv)
@@ -74,15 +76,14 @@ def main(argv=None) -> dict:
         if args.json is None:  # never overwrite the committed evidence with a smoke run
             path = args.runs / "bench_distill_fast.json"
 
-    per_seed = []
-    for seed in args.seeds:
-        cfg = DistillConfig(task=args.task, method=args.method, encoder=args.encoder, seed=seed,
-                            out=str(args.runs / "_".join(filter(None, ("distill", args.task, args.method, args.variant,
-                                                                        f"s{seed}")))), **overrides)
-        per_seed.append({"seed": seed, **run_seed(cfg)})
-        print(f"seed {seed}: seen {per_seed[-1]['seen_success']:.2f}, unseen {per_seed[-1]['unseen_success']:.2f}, "
-              f"{per_seed[-1]['wall_time_s'] / 60:.1f} min")
+    def config(seed: int) -> DistillConfig:
+        folder = "_".join(filter(None, ("distill", args.task, args.method, args.variant, f"s{seed}")))
+        return DistillConfig(task=args.task, method=args.method, encoder=args.encoder, seed=seed,
+                             out=str(args.runs / folder), **overrides)
 
+    per_seed = harness.run_grid(run_seed, [{"cfg": config(seed)} for seed in args.seeds], jobs=args.jobs,
+                                desc="seeds")
+    per_seed = [{"seed": row.pop("cfg").seed, **row} for row in per_seed]
     result = summary(per_seed, args.task, args.method, args.encoder, argv)
     result["variant"], result["overrides"] = args.variant, requested
     result["expert"] = SOLVERS[args.task].__name__  # the teacher: the task's expert when the study ran

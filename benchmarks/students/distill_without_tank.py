@@ -33,10 +33,10 @@ import numpy as np
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.study import run_arm
-from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sibling_script,
-                               sigterm_interrupts, write_json)
+from dexart_lite.utils import benchmark_results, fast_mode, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__)
+harness = sibling_script(__file__, "_harness")
 STUDENT = RESULTS / "distill_toilet_episodes2x.json"  # curriculum_runs.STUDENTS["toilet"]
 
 
@@ -82,20 +82,17 @@ def distil(cfg: DistillConfig, prob: float) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    harness.options(parser, seeds=[0, 1])
     parser.add_argument("--prob", type=float, default=0.5, help="probability that a training episode hides the tank")
-    parser.add_argument("--jobs", type=int, default=1, help="seeds distilled at once (one torch thread each if > 1)")
-    parser.add_argument("--runs", type=Path, default=Path("runs/curriculum"))
-    parser.add_argument("--json", type=Path, default=RESULTS / "distill_toilet_notank.json")
+    harness.options(parser, "jobs", runs=Path("runs/curriculum"), json=RESULTS / "distill_toilet_notank.json",
+                    helps={"jobs": "seeds distilled at once (one torch thread each if > 1)"})
     args = parser.parse_args(argv)
     if not 0.0 <= args.prob <= 1.0:
         raise ValueError(f"--prob must be a probability in [0, 1], got {args.prob}")
     cfgs = [student_config(seed, args.runs, 1 if args.jobs > 1 else 0) for seed in args.seeds]
-    if args.jobs > 1:  # spawned workers, each with its own wrapped make
-        with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
-            per_seed = list(pool.map(distil, cfgs, [args.prob] * len(cfgs)))
-    else:  # here: the wrap is undone after each seed
-        per_seed = [distil(cfg, args.prob) for cfg in cfgs]
+    # with --jobs > 1 each seed runs in a spawned worker with its own wrapped make; here the wrap is undone after each
+    per_seed = harness.run_grid(distil, [{"cfg": cfg, "prob": args.prob} for cfg in cfgs], jobs=args.jobs, desc="seeds")
+    per_seed = [{k: v for k, v in row.items() if k not in ("cfg", "prob")} for row in per_seed]
     out = {"task": "toilet", "prob": args.prob, "student_settings": str(STUDENT.name), "per_seed": per_seed,
            "seen_success": float(np.mean([r["seen_success"] for r in per_seed])),
            "unseen_success": float(np.mean([r["unseen_success"] for r in per_seed])),

@@ -20,7 +20,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-import dexart_lite
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl import ppo
 from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, write_json
 
@@ -32,21 +32,14 @@ PAPER_FRAMES = {"faucet": 10e6, "bucket": 40e6, "laptop": 15e6, "toilet": 8e6}
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--frames", type=int, default=1_000_000)
+    add_config_arguments(parser, ppo.PPOConfig, names=["task", "frames", "encoder", "workers", "seed", "eval_episodes",
+                                                       "init_log_std", "resume"], defaults={"init_log_std": None},
+                         helps={"init_log_std": "initial log std of the actions (None: the preset's; DexArt: 0)"})
     parser.add_argument("--preset", default="faithful", choices=list(ppo.PRESETS))
-    parser.add_argument("--encoder", default="small")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--eval-episodes", type=int, default=10, help="per object, seen and unseen (DexArt: 100)")
     parser.add_argument("--out", type=Path, help="training folder (default runs/learning_<task>)")
     parser.add_argument("--results", type=Path, default=RESULTS, help="where the JSON and PNG go")
-    parser.add_argument("--resume", action="store_true")
-    parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json")
-    parser.add_argument("--init-log-std", type=float, default=None,
-                        help="initial log std of the actions (default: the preset's; DexArt: 0)")
-    parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
-                        help="other PPOConfig fields, e.g. obs=state reward=shaped lr=3e-4 (needs --tag)")
+    parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json (needed "
+                        "by --set)")
     args = parser.parse_args(argv)
     name = f"learning_{args.task}" + (f"_{args.tag}" if args.tag else "")
     out = args.out or Path("runs") / name

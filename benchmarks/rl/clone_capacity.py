@@ -20,7 +20,7 @@ the command and the machine.
 from __future__ import annotations
 
 import argparse
-import itertools
+import functools
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -28,37 +28,37 @@ from pathlib import Path
 import numpy as np
 import torch
 
-import dexart_lite
 from dexart_lite.models.actor_critic import make_actor_critic
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import network_encoder
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.evaluate import evaluate
 from dexart_lite.rl.warmstart import clone_the_guide
-from dexart_lite.utils import (benchmark_results, fast_mode, process_pool, provenance, sigterm_interrupts,
-                               write_json)
+from dexart_lite.utils import benchmark_results, fast_mode, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__) / "curriculum"
+harness = sibling_script(__file__, "_harness")
 ARCHS = {"dexart": {"head": "64,64", "state_hidden": 64}, "wide": {"head": "256,256", "state_hidden": 256}}
 
 
-def clone(task: str, obs: str, arch: str, seed: int, args) -> dict:
+def clone(task: str, obs: str, arch: str, seed: int, demo_episodes: int, demo_noise: float, epochs: int, rounds: int,
+          eval_episodes: int) -> dict:
     """One clone: demonstrations, warm start, DAgger rounds, evaluation on both splits."""
     torch.set_num_threads(1)
     torch.manual_seed(seed)
     start = time.perf_counter()
-    cfg = ppo.preset("fast", task=task, obs=obs, seed=seed, demo_episodes=args.demo_episodes,
-                     demo_noise=args.demo_noise, bc_warmstart=args.epochs, dagger_rounds=args.rounds, **ARCHS[arch])
+    cfg = ppo.preset("fast", task=task, obs=obs, seed=seed, demo_episodes=demo_episodes,
+                     demo_noise=demo_noise, bc_warmstart=epochs, dagger_rounds=rounds, **ARCHS[arch])
     if fast_mode():  # a smoke run of the script itself, not evidence
         cfg = replace(cfg, max_episode_steps=20, num_points=64, demo_episodes=1, bc_warmstart=1,
-                                      dagger_rounds=min(args.rounds, 1))
+                                      dagger_rounds=min(rounds, 1))
     probe = make_env(task, **cfg.env_kwargs())
     _, state_dim, action_dim = env_dims(probe)
     probe.close()
     actor_critic = make_actor_critic(state_dim, action_dim, network_encoder(asdict(cfg)), cfg.init_log_std,
                                      head=cfg.head_widths(), normalize=True, state_hidden=cfg.state_hidden)
     samples, info = clone_the_guide(cfg, actor_critic)
-    episodes = 1 if fast_mode() else args.eval_episodes
+    episodes = 1 if fast_mode() else eval_episodes
     success = {split: evaluate(actor_critic, task, split, episodes, 100, cfg.env_kwargs())["success_rate"]
                for split in ("seen", "unseen")}
     return {"arch": arch, **ARCHS[arch], "seed": seed, "samples": int(len(samples)),
@@ -69,25 +69,22 @@ def clone(task: str, obs: str, arch: str, seed: int, args) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    harness.options(parser, "task")
     parser.add_argument("--obs", default="state", choices=["state", "cloud"])
     parser.add_argument("--arch", nargs="+", default=list(ARCHS), choices=list(ARCHS))
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    harness.options(parser, seeds=[0, 1])
     parser.add_argument("--demo-episodes", type=int, default=4, help="per training object")
     parser.add_argument("--demo-noise", type=float, default=0.1)
-    parser.add_argument("--epochs", type=int, default=50, help="BC epochs after the demos and after each round")
+    harness.options(parser, "eval_episodes", "json", epochs=50,
+                    helps={"epochs": "BC epochs after the demos and after each round"})
     parser.add_argument("--rounds", type=int, default=3, help="DAgger rounds")
-    parser.add_argument("--eval-episodes", type=int, default=3, help="per seen and unseen object")
-    parser.add_argument("--jobs", type=int, default=1, help="clones trained at once (one process each)")
-    parser.add_argument("--json", type=Path, default=None)
+    harness.options(parser, "jobs", helps={"jobs": "clones trained at once (one process each)"})
     args = parser.parse_args(argv)
-    runs = list(itertools.product(args.arch, args.seeds))
     start = time.perf_counter()
-    if args.jobs > 1:
-        with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
-            rows = list(pool.map(clone, *zip(*[(args.task, args.obs, a, s, args) for a, s in runs])))
-    else:
-        rows = [clone(args.task, args.obs, a, s, args) for a, s in runs]
+    grid = [{"arch": arch, "seed": seed} for arch in args.arch for seed in args.seeds]
+    settings = {k: getattr(args, k) for k in ("task", "obs", "demo_episodes", "demo_noise", "epochs", "rounds",
+                                              "eval_episodes")}
+    rows = harness.run_grid(functools.partial(clone, **settings), grid, jobs=args.jobs, desc="clones")
     summary = {arch: {split: float(np.mean([r[f"{split}_success"] for r in rows if r["arch"] == arch]))
                       for split in ("seen", "unseen")} for arch in args.arch}
     result = {"task": args.task, "obs": args.obs, "demo_episodes": args.demo_episodes, "demo_noise": args.demo_noise,

@@ -21,18 +21,19 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
 
-import dexart_lite
 from dexart_lite.envs import make
 from dexart_lite.demos import episode_list
 from dexart_lite.rollout import noisy, per_object_summary, run_episodes
 from dexart_lite.experts import ScriptedPolicy
-from dexart_lite.imitation.distill import dagger_beta
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.cli import add_config_arguments
+from dexart_lite.imitation.distill import DistillConfig, dagger_beta
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 
 class StateStudent(torch.nn.Module):
@@ -85,20 +86,13 @@ def fit(student: StateStudent, inputs: list, labels: list, steps: int, optimizer
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--demo-episodes-per-object", type=int, default=4)
-    parser.add_argument("--noise", type=float, default=0.15, help="executed-action noise of the demonstrations")
-    parser.add_argument("--rounds", type=int, default=6)
-    parser.add_argument("--episodes-per-round", type=int, default=2, help="per object")
-    parser.add_argument("--beta", type=float, default=0.5)
-    parser.add_argument("--beta-decay", type=float, default=0.6)
-    parser.add_argument("--beta-min", type=float, default=0.0, help="beta never falls below this (distill's beta_min)")
-    parser.add_argument("--drop-failed", action="store_true", help="DAgger rounds keep only their successful "
-                        "episodes' samples (distill's drop_failed; the demonstrations are all kept)")
+    # the DAgger settings are distill's own fields, with its defaults
+    add_config_arguments(parser, DistillConfig, names=["task", "demo_episodes_per_object", "demo_noise", "rounds",
+                                                       "episodes_per_round", "beta", "beta_decay", "beta_min",
+                                                       "drop_failed"], overrides=False)
+    harness.options(parser, "seed")
     parser.add_argument("--steps", type=int, default=3000, help="Adam steps (batch 256) after the demos and each round")
-    parser.add_argument("--eval-episodes", type=int, default=2, help="per object and split")
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "json", eval_episodes=2)
     args = parser.parse_args(argv)
     steps_per_episode = None
     if fast_mode():  # a smoke run of the script itself, not evidence
@@ -116,7 +110,7 @@ def main(argv=None) -> dict:
     inputs, labels, history = [], [], []
     for r in range(args.rounds + 1):  # round 0: the demonstrations (the expert drives, with noise)
         beta = 1.0 if r == 0 else dagger_beta(args, r)  # distill's schedule (args has its three fields)
-        driver = Driver(expert, student, beta, args.noise if r == 0 else 0.0, rng)
+        driver = Driver(expert, student, beta, args.demo_noise if r == 0 else 0.0, rng)
         per = args.demo_episodes_per_object if r == 0 else args.episodes_per_round
         starts = []  # index of each episode's first sample in driver.inputs
         results = run_episodes(driver, env, episode_list(names, per, np.random.default_rng([args.seed, 1, r])),

@@ -15,7 +15,6 @@ and the tests through ``load_benchmark("_harness")`` (tests/conftest.py).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import os
 import subprocess
@@ -42,7 +41,8 @@ class Options:
                               metadata={"help": "the object splits", "choices": list(SPLITS)})
     seed: int = field(default=0, metadata={"help": "the seed (env resets, noise, network initialisation)"})
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2], metadata={"help": "one run per seed"})
-    jobs: int = field(default=1, metadata={"help": "runs at once, one process each (2 on a 2-core machine)"})
+    jobs: int = field(default=1, metadata={"help": "runs or evaluations at once, one process each (2 on a 2-core "
+                                                   "machine)"})
     episodes_per_object: int = field(default=3, metadata={"help": "episodes per object"})
     eval_episodes: int = field(default=3, metadata={"help": "evaluation episodes per seen and unseen object"})
     frames: int = field(default=100_000, metadata={"help": "environment frames per run"})

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 
@@ -36,7 +35,9 @@ from dexart_lite.experts import SOLVERS, ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
 from dexart_lite.objects import list_objects
 from dexart_lite.rollout import noisy, run_episodes
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 FLUNG = 0.6  # rad: past upright toward the far side
 RAISED, FELL = -1.0, -1.3  # rad: raised off the wall, then back toward it
@@ -89,12 +90,10 @@ def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, obj
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigma", type=float, default=0.1, help="action noise std")
-    parser.add_argument("--splits", nargs="+", default=["seen", "unseen"])
-    parser.add_argument("--episodes-per-object", type=int, default=3)
-    parser.add_argument("--seed", type=int, default=0)
+    harness.options(parser, "splits", "episodes_per_object", "seed")
     parser.add_argument("--expert", help="another expert of the task than its own, by class name "
                         "(dexart_lite.experts.TASK_EXPERTS)")
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.episodes_per_object = 1

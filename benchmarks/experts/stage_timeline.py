@@ -17,16 +17,16 @@ command, machine.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
-import dexart_lite
 from dexart_lite.envs import make
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
 from dexart_lite.rollout import run_episodes
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 KEYS = ("first_stage2", "first_stage3", "first_success")
 
@@ -60,11 +60,7 @@ def summarise(episodes: list[dict]) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="bucket", choices=dexart_lite.TASKS)
-    parser.add_argument("--split", default="seen", choices=["seen", "unseen"])
-    parser.add_argument("--episodes-per-object", type=int, default=1)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", type=Path, default=None)
+    harness.options(parser, "split", "seed", "json", task="bucket", episodes_per_object=1)
     args = parser.parse_args(argv)
     episodes = timeline(args.task, args.split, args.episodes_per_object, args.seed)
     result = {"task": args.task, "split": args.split, "seed": args.seed, "episodes": episodes,

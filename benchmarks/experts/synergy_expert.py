@@ -19,23 +19,19 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
-import dexart_lite
 from dexart_lite.experts.solve import solve
 from dexart_lite.objects import list_objects
-from dexart_lite.utils import benchmark_results, fast_mode, provenance, write_json
+from dexart_lite.utils import benchmark_results, fast_mode, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__)
+harness = sibling_script(__file__, "_harness")
 
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=list(dexart_lite.TASKS), choices=dexart_lite.TASKS)
-    parser.add_argument("--splits", nargs="+", default=["seen", "unseen"])
-    parser.add_argument("--episodes-per-object", type=int, default=3, help="as the committed solve_*.json")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", type=Path, help="write the results here")
+    harness.options(parser, "tasks", "splits", "episodes_per_object", "seed", "json",
+                    helps={"episodes_per_object": "as the committed solve_*.json"})
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.episodes_per_object = 1

@@ -92,14 +92,14 @@ def reset_rss_growth_mb(resets: int) -> float:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=list(dexart_lite.TASKS), choices=dexart_lite.TASKS)
+    harness.options(parser, "tasks")
     parser.add_argument("--steps", type=int, default=400, help="steps per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="repeats of the 1-process measurements (median)")
     parser.add_argument("--resets", type=int, default=2000, help="resets of the memory check (0: skip it)")
     parser.add_argument("--two-process", action=argparse.BooleanOptionalAction, default=True,
                         help="also measure two worker processes stepping at once")
     parser.add_argument("--ref", help="an earlier commit whose 1-process rate is measured side by side")
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
 
     tasks = {}

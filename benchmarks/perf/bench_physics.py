@@ -29,13 +29,13 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from pathlib import Path
 
-import dexart_lite
 from dexart_lite.envs.base import physics_setting
 from dexart_lite.experts.solve import solve
 from dexart_lite.rollout import step_rate
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 BASELINE = "50x10"  # the env's defaults: 50 solver iterations, 10 sub-steps of 4 ms
 
@@ -76,7 +76,7 @@ def solver_success(tasks: list[str], settings: list[str], episodes: int, toleran
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=list(dexart_lite.TASKS), choices=dexart_lite.TASKS)
+    harness.options(parser, "tasks")
     parser.add_argument("--settings", nargs="+", default=[BASELINE, "30x10", "20x10", "50x5"],
                         help="ITERATIONSxFRAME_SKIP, the first one the baseline (default: 50x10 30x10 20x10 50x5)")
     parser.add_argument("--steps", type=int, default=400, help="env steps per speed measurement")
@@ -85,9 +85,9 @@ def main(argv=None) -> dict:
                         help="measure the steps/s of every setting (alone on the machine: these are timings)")
     parser.add_argument("--solvers", action=argparse.BooleanOptionalAction, default=True,
                         help="also run the scripted solvers on every seen and unseen object per setting")
-    parser.add_argument("--episodes-per-object", type=int, default=3)
+    harness.options(parser, "episodes_per_object")
     parser.add_argument("--tolerance", type=float, default=0.03, help="allowed change of a solver's success")
-    parser.add_argument("--json", type=Path, help="write the results here")
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     for setting in args.settings:
         physics_setting(setting)

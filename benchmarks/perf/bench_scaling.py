@@ -36,14 +36,15 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-import dexart_lite  # noqa: E402
 from dexart_lite.models.actor_critic import make_actor_critic  # noqa: E402
 from dexart_lite.rl import ppo  # noqa: E402
 from dexart_lite.rl.env import make_env  # noqa: E402
 from dexart_lite.rollout import parallel_step_rates  # noqa: E402
-from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, write_json  # noqa: E402
+from dexart_lite.utils import (benchmark_results, fast_mode, provenance, save_figure, sibling_script,  # noqa: E402
+                               write_json)
 
 RESULTS = benchmark_results(__file__) / "bench_scaling.json"
+harness = sibling_script(__file__, "_harness")
 
 
 def collection_fps(task: str, backend: str, workers: int, frames: int, per_worker: int, env_kwargs: dict) -> float:
@@ -91,13 +92,13 @@ def plot(result: dict, path: Path) -> Path:
 def main(argv=None) -> dict:
     cores = os.cpu_count() or 1
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    harness.options(parser, "task")
     parser.add_argument("--workers", type=int, nargs="+", default=list(range(1, cores + 1)))
     parser.add_argument("--backends", nargs="+", default=["process", "ray"], choices=["process", "ray"])
-    parser.add_argument("--frames", type=int, default=4000, help="timed frames per setting")
+    harness.options(parser, frames=4000, helps={"frames": "timed frames per setting"})
     parser.add_argument("--per-worker", type=int, default=500, help="frames per worker per batch")
     parser.add_argument("--steps", type=int, default=1000, help="env steps per process (plain_env)")
-    parser.add_argument("--json", type=Path, default=RESULTS)
+    harness.options(parser, json=RESULTS)
     args = parser.parse_args(argv)
     if fast_mode() and args.json == RESULTS:
         raise ValueError("fast mode writes smoke results: pass --json elsewhere")

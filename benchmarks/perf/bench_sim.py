@@ -29,14 +29,14 @@ import argparse
 import statistics
 import time
 from collections import defaultdict
-from pathlib import Path
 
 import numpy as np
 
-import dexart_lite
 from dexart_lite import pointcloud as pc
 from dexart_lite.envs import make
-from dexart_lite.utils import provenance, write_json
+from dexart_lite.utils import provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 
 class PartTimer:
@@ -203,10 +203,10 @@ def print_tables(result: dict) -> None:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    harness.options(parser, "task")
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--steps", type=int, default=40, help="control steps per part per round")
-    parser.add_argument("--json", type=Path, help="write the results here")
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
 
     env = make(args.task, point_noise=True, camera_noise=True).unwrapped

@@ -42,7 +42,9 @@ from dexart_lite.imitation.distill import DistillConfig, build_student, train_st
 from dexart_lite.models import pointnet
 from dexart_lite.models.pointnet import ENCODER_SIZES
 from dexart_lite.rl.env import torch_threads
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 VARIANTS = ("fp32", "bf16", "in_memory", "no_ema")
 
@@ -66,7 +68,7 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--demos", type=Path, help="a demonstrations folder (default: collect a small one)")
     parser.add_argument("--samples", type=int, default=4096, help="train on the first SAMPLES demonstrations")
-    parser.add_argument("--epochs", type=int, default=2)
+    harness.options(parser, epochs=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
     parser.add_argument("--encoders", nargs="+", default=["small"], choices=list(ENCODER_SIZES),
@@ -75,7 +77,7 @@ def main(argv=None) -> dict:
                         help="clouds per per-point pass (pointnet.CHUNK); with more than one, every label runs once "
                         "per chunk")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores, as distill)")
-    parser.add_argument("--json", type=Path, help="where to write the results (default: print only)")
+    harness.options(parser, "json", helps={"json": "where to write the results (default: print only)"})
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.samples, args.epochs, args.repeats = min(args.samples, 64), 1, 1

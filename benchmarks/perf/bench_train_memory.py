@@ -25,9 +25,10 @@ import tempfile
 
 import numpy as np
 
-from dexart_lite import TASKS
 from dexart_lite.rl import ppo
-from dexart_lite.utils import fast_mode, process_pool, provenance, sigterm_interrupts, write_json
+from dexart_lite.utils import fast_mode, process_pool, provenance, sibling_script, sigterm_interrupts, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 
 def arm(job: tuple) -> list[dict]:
@@ -53,13 +54,13 @@ def summary(history: list[dict], skip: int) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--task", default="faucet", choices=TASKS)
+    harness.options(parser, task="faucet")
     parser.add_argument("--batches", type=int, default=16, help="PPO batches of 4,000 frames per arm")
     parser.add_argument("--skip", type=int, default=3, help="batches left out of the growth's fit (start-up)")
     parser.add_argument("--jobs", type=int, default=2, choices=(1, 2),
                         help="2: the arms side by side in two processes (the figures); 1: one after the other in "
                              "this process (a smoke run: the second arm's memory starts from the first's)")
-    parser.add_argument("--json", default=None)
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
 
     batches = 2 if fast_mode() else args.batches

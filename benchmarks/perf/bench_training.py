@@ -49,7 +49,6 @@ from pathlib import Path
 import torch
 from tensordict import TensorDict
 
-import dexart_lite
 from dexart_lite.envs import make as make_gym_env
 from dexart_lite.envs.base import physics_setting
 from dexart_lite.models.actor_critic import Acting, encoder_of, make_actor_critic
@@ -353,8 +352,7 @@ def print_tables(result: dict, ref: str | None) -> None:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--frames", type=int, default=4000, help="timed frames per collection variant and round")
+    harness.options(parser, "task", frames=4000, helps={"frames": "timed frames per collection variant and round"})
     parser.add_argument("--collector-batch", type=int, default=ppo.PRESETS["cpu"]["frames_per_batch"],
                         help="frames per collector batch (train: 4000 on the cpu preset, 20000 faithful)")
     parser.add_argument("--rounds", type=int, default=3, help="rounds of the collection variants (median)")
@@ -365,7 +363,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--physics", help="also measure the cpu-preset iteration with this physics setting "
                         "(ITERATIONSxFRAME_SKIP, e.g. 20x5) against the default, alternately (--ref-rounds each)")
     parser.add_argument("--only-physics", action="store_true", help="with --physics: measure nothing else")
-    parser.add_argument("--json", type=Path, help="write the results here")
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     if args.physics:
         physics_setting(args.physics)  # a bad setting fails now, not after the other measurements

@@ -18,20 +18,20 @@ is not there is a one-line error (no silent fallback), so the figure is never a 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import statistics
 import tempfile
 from pathlib import Path
 
 import torch
 
-import dexart_lite
 from dexart_lite.imitation.distill import DistillConfig, distill
 from dexart_lite.objects import list_objects
 from dexart_lite.rl import ppo
-from dexart_lite.utils import benchmark_results, fast_mode, machine_info, provenance, resolve_device, write_json
+from dexart_lite.utils import (benchmark_results, fast_mode, machine_info, provenance, resolve_device, sibling_script,
+                               write_json)
 
 RESULTS = benchmark_results(__file__) / "device_check.json"
+harness = sibling_script(__file__, "_harness")
 
 
 def ppo_figures(task: str, device: str, frames: int, workers: int, out: Path) -> dict:
@@ -61,13 +61,12 @@ def distill_figures(task: str, device: str, epochs: int, demo_episodes: int, out
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--devices", nargs="+", default=["cpu", "cuda"], choices=["cpu", "cuda"])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
-    parser.add_argument("--frames", type=int, default=24_000, help="PPO frames per device (6 batches of 4,000)")
+    harness.options(parser, "task", frames=24_000, helps={"frames": "PPO frames per device (6 batches of 4,000)"})
     parser.add_argument("--workers", type=int, default=2, help="PPO collector processes")
-    parser.add_argument("--epochs", type=int, default=5, help="distillation BC epochs per device")
+    harness.options(parser, epochs=5, helps={"epochs": "distillation BC epochs per device"})
     parser.add_argument("--demo-episodes", type=int, default=4,
                         help="expert episodes per seen object for BC (the DAgger round runs half as many)")
-    parser.add_argument("--json", type=Path, default=RESULTS)
+    harness.options(parser, json=RESULTS)
     args = parser.parse_args(argv)
     if fast_mode() and args.json == RESULTS:
         raise ValueError("fast mode writes smoke results: pass --json elsewhere")

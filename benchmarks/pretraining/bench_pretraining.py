@@ -26,7 +26,9 @@ from dexart_lite.objects import CATEGORIES, list_objects
 from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.registration import TASKS
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 
 def dam_cost(task: str, objects: int, clouds: int, root: Path) -> float:
@@ -70,7 +72,7 @@ def main(argv=None) -> int:
     parser.add_argument("--samples-per-object", type=int, default=datasets.DEFAULT_DAM_SAMPLES,
                         help="DAM size the minutes per task are given for")
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
-    parser.add_argument("--json", type=Path, help="write the results here")
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not a measurement
         args.tasks, args.objects, args.clouds, args.train_clouds = "laptop", 1, 5, 32

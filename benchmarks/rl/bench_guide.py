@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
-import dexart_lite
 from dexart_lite.envs import make
 from dexart_lite.rl.curriculum import GuidedStart
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 LEVEL = {"schedule": "uniform", "horizon": 250}
 
@@ -31,10 +31,10 @@ def timed_start(env: GuidedStart, seed: int, h: int) -> float:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    harness.options(parser, "task")
     parser.add_argument("--h", type=int, default=100, help="guide steps per start")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     if fast_mode():
         args.h, args.repeats = min(args.h, 5), 1

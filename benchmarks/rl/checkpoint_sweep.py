@@ -37,7 +37,9 @@ import numpy as np
 
 from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
-from dexart_lite.utils import provenance, save_figure, write_json
+from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 SPLITS = ("seen", "unseen")
 REPO = Path(__file__).resolve().parents[2]  # git paths are relative to the repository root
@@ -144,8 +146,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--start", nargs="*", type=parse_spec, default=[], help="SERIES=CHECKPOINT a series started "
                         "from (drawn at 0 RL frames)")
     parser.add_argument("--episodes", type=int, default=10, help="per seen and unseen object")
-    parser.add_argument("--seed", type=int, default=1000, help="env seed of every evaluation (1000: held out)")
-    parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
+    harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of every evaluation (1000: held out)"})
     parser.add_argument("--summary-from", type=int, default=0, help="summarise the checkpoints of at least this "
                         "many RL frames (the earlier ones are still evaluated and drawn)")
     parser.add_argument("--cache", type=Path, default=Path("runs/checkpoint_sweep"), help="where git checkpoints go")

@@ -27,7 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dexart_lite.utils import provenance, write_json
+from dexart_lite.utils import provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 DEFAULT_KEYS = ("success_rate", "episode_return", "bc_weight")
 LABELS = {"success_rate": "success of the collected episodes", "episode_return": "mean episode return (own reward)",
@@ -67,7 +69,7 @@ def main(argv=None) -> dict:
                         help="frame boundaries of the table's windows")
     parser.add_argument("--smooth", type=int, default=5, help="batches in the plotted running mean")
     parser.add_argument("--png", type=Path)
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     if len(args.windows) < 2 or sorted(args.windows) != args.windows:
         raise ValueError(f"--windows needs at least two increasing frame counts, got {args.windows}")

@@ -34,6 +34,7 @@ from dexart_lite.rl.evaluate import (EPISODES_PER_OBJECT, TEST_SEEDS, by_templat
 from dexart_lite.utils import benchmark_results, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__).parent / "test"
+harness = sibling_script(__file__, "_harness")
 COLUMNS = ("expert", "student", "rl", "rl_state")
 SPLITS = ("seen", "unseen")
 
@@ -76,9 +77,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--students", nargs="*", default=[], help="SEED=CHECKPOINT: the students the RL checkpoints "
                         "started from, counted in the cell's demonstration steps (not evaluated)")
     parser.add_argument("--episodes", type=int, default=EPISODES_PER_OBJECT, help="per seen and unseen object")
-    parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
+    harness.options(parser, "jobs")
     parser.add_argument("--cache", type=Path, default=Path("runs/final_evaluation"), help="where git checkpoints go")
-    parser.add_argument("--json", type=Path, default=None, help=f"default {RESULTS.name}/<task>_<column>.json")
+    harness.options(parser, "json", helps={"json": f"default {RESULTS.name}/<task>_<column>.json"})
     args = parser.parse_args(argv)
     if (args.column == "expert") == bool(args.checkpoints) or (args.column == "expert") == bool(args.source):
         raise ValueError("--checkpoints and --source are needed for every column but the expert's, and only there")

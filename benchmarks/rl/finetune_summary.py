@@ -18,9 +18,10 @@ import json
 import statistics
 from pathlib import Path
 
-from dexart_lite.utils import benchmark_results, provenance, write_json
+from dexart_lite.utils import benchmark_results, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__)
+harness = sibling_script(__file__, "_harness")
 SPLITS = ("seen", "unseen")
 
 
@@ -58,9 +59,9 @@ def pooled(rows: list[dict]) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="faucet")
+    harness.options(parser, task="faucet")
     parser.add_argument("--results", type=Path, default=RESULTS, help="folder of the finetune_<task>*.json files")
-    parser.add_argument("--json", type=Path, help="write the summary here")
+    harness.options(parser, "json", helps={"json": "write the summary here"})
     args = parser.parse_args(argv)
     rows = runs(args.task, args.results)
     if not rows:

@@ -38,9 +38,10 @@ import numpy as np
 
 from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
-from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, write_json
+from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__)
+harness = sibling_script(__file__, "_harness")
 CURRICULUM = RESULTS / "curriculum"
 SPLITS = ("seen", "unseen")
 
@@ -135,10 +136,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--run-sets", nargs="+", default=None, help="JSON stems under benchmarks/results/rl/"
                         "curriculum (default: every RL run set that starts from a student)")
     parser.add_argument("--episodes", type=int, default=10, help="per seen and unseen object")
-    parser.add_argument("--seed", type=int, default=1000, help="env seed of every evaluation: 1000, the held-out "
-                        "seed of bench_finetune.py, not the 100 of the runs' own evaluations that chose settings")
-    parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
-    parser.add_argument("--runs", type=Path, default=Path("runs/curriculum"))
+    harness.options(parser, "jobs", seed=1000, runs=Path("runs/curriculum"),
+                    helps={"seed": "env seed of every evaluation: 1000, the held-out seed of bench_finetune.py, not "
+                                   "the 100 of the runs' own evaluations that chose settings"})
     parser.add_argument("--out", type=Path, default=RESULTS / "paired_eval.json")
     args = parser.parse_args(argv)
     if args.episodes < 1:

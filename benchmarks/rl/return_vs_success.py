@@ -36,7 +36,9 @@ from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import policy_function
 from dexart_lite.rl.evaluate import load_policy
 from dexart_lite.rollout import noisy, run_episodes
-from dexart_lite.utils import check_choice, fast_mode, provenance, write_json
+from dexart_lite.utils import check_choice, fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 
 def episodes_of(policy, env, resets: list[tuple[int, str]]) -> list[dict]:
@@ -77,15 +79,14 @@ def summary(label: str, episodes: list[dict], checkpoint: str | None = None, fra
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="faucet", help=f"one of {', '.join(TASKS)}")
+    harness.options(parser, task="faucet")
     parser.add_argument("--policy", nargs="*", default=[], help="checkpoints to compare with the expert")
-    parser.add_argument("--split", default="seen")
-    parser.add_argument("--episodes-per-object", type=int, default=5)
-    parser.add_argument("--seed", type=int, default=1000, help="reset seeds: solve_episodes(seed)")
+    harness.options(parser, "split", episodes_per_object=5, seed=1000,
+                    helps={"seed": "reset seeds: solve_episodes(seed)"})
     parser.add_argument("--expert-noise", type=float, default=0.1, help="the expert's executed-action noise std")
     parser.add_argument("--reward", default="dexart", help=f"the reward the episodes are scored on: one of "
                         f"{', '.join(REWARD_MODES)}")
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "json")
     args = parser.parse_args(argv)
     check_choice("task", args.task, TASKS)
     check_choice("reward", args.reward, REWARD_MODES)

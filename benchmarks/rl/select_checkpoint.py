@@ -47,6 +47,8 @@ import numpy as np
 from dexart_lite.rl.evaluate import check_phase_seed, evaluate_many, split_stats
 from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
 
+harness = sibling_script(__file__, "_harness")
+
 SPLITS = ("seen", "unseen")
 
 
@@ -112,8 +114,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--select-seed", type=int, default=100, help="env seed of the validation episodes (one of "
                         "rl.evaluate.VALIDATION_SEEDS)")
     parser.add_argument("--episodes", type=int, default=10, help="held-out episodes per seen and unseen object")
-    parser.add_argument("--seed", type=int, default=1000, help="env seed of the held-out evaluation")
-    parser.add_argument("--jobs", type=int, default=1, help="evaluations at once")
+    harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of the held-out evaluation"})
     parser.add_argument("--cache", type=Path, default=Path("runs/checkpoint_sweep"), help="where git checkpoints go")
     parser.add_argument("--json", type=Path, required=True)
     args = parser.parse_args(argv)

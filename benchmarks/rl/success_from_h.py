@@ -37,10 +37,11 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-import dexart_lite
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
 from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
-from dexart_lite.utils import process_pool, provenance, save_figure, sigterm_interrupts, write_json
+from dexart_lite.utils import process_pool, provenance, save_figure, sibling_script, sigterm_interrupts, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 
 def parse_policy(text: str) -> tuple[str, str]:
@@ -116,7 +117,7 @@ def plot(result: dict, path: Path) -> None:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="bucket", choices=dexart_lite.TASKS)
+    harness.options(parser, task="bucket")
     parser.add_argument("--policy", type=parse_policy, action="append", required=True,
                         help="label=checkpoint, or expert; repeat for several")
     parser.add_argument("--h", type=int, nargs="+", default=[0, 50, 100, 125, 140, 155, 170])
@@ -125,9 +126,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--noise-on", default="all", choices=list(NOISE_PARTS),
                         help="the action part the noise perturbs: all, arm (palm twist) or hand (joint targets)")
     parser.add_argument("--demos", type=int, default=11, help="demonstrations (one per seen object by default)")
-    parser.add_argument("--seed", type=int, default=0, help="the demonstrations' solve seed")
-    parser.add_argument("--jobs", type=int, default=1, help="policies evaluated at once")
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "seed", "jobs", "json", helps={"seed": "the demonstrations' solve seed"})
     parser.add_argument("--png", type=Path)
     args = parser.parse_args(argv)
     if min(args.h) < 0:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -39,7 +38,9 @@ from dexart_lite.pointcloud import LABELS
 from dexart_lite.rollout import noisy, run_episodes
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.registration import privileged_slices
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 VARIANTS = ("dexart", "scaled", "labels", "scaled-medium", "labels-medium")
 SCALE = 0.2  # m: ``scaled`` divides the centred coordinates by this
@@ -112,14 +113,13 @@ def probe(variant: str, train: dict, tests: dict[str, dict], centre: torch.Tenso
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop")
-    parser.add_argument("--episodes-per-object", type=int, default=3, help="training episodes per seen object")
+    harness.options(parser, "task", "episodes_per_object",
+                    helps={"episodes_per_object": "training episodes per seen object"})
     parser.add_argument("--test-episodes-per-object", type=int, default=1, help="test episodes per object and split")
     parser.add_argument("--noise", type=float, default=0.3, help="std of the expert's executed-action noise")
-    parser.add_argument("--epochs", type=int, default=20)
+    harness.options(parser, epochs=20)
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", type=Path)
+    harness.options(parser, "seed", "json")
     args = parser.parse_args(argv)
     torch.set_num_threads(2)
     max_steps = 30 if fast_mode() else None  # fast mode: a smoke run of the script, not evidence

@@ -38,7 +38,9 @@ from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.objects import list_objects
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint, policy_function
 from dexart_lite.rollout import noisy, run_episodes
-from dexart_lite.utils import fast_mode, provenance, write_json
+from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 STALL_M = 0.002  # m of palm travel per control step below which a step counts as stalled
 CLASSES = ("success", "no_contact", "touched", "grasped")
@@ -110,10 +112,9 @@ def run_student(run: Path, split: str, sigma: float, episodes_per_object: int, s
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=Path, nargs="+", required=True, help="distill folders (checkpoint.pt)")
-    parser.add_argument("--splits", nargs="+", default=["seen", "unseen"], choices=["seen", "unseen"])
+    harness.options(parser, "splits")
     parser.add_argument("--sigmas", type=float, nargs="+", default=[0.0, 0.1, 0.2])
-    parser.add_argument("--episodes-per-object", type=int, default=2)
-    parser.add_argument("--seed", type=int, default=200, help="evaluation seeds (not the training ones)")
+    harness.options(parser, episodes_per_object=2, seed=200, helps={"seed": "evaluation seeds (not the training ones)"})
     parser.add_argument("--json", type=Path, required=True)
     args = parser.parse_args(argv)
     max_steps = 12 if fast_mode() else None

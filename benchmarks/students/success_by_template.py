@@ -30,7 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from dexart_lite import objects as objects_lib
-from dexart_lite.utils import provenance, write_json
+from dexart_lite.utils import provenance, sibling_script, write_json
+
+harness = sibling_script(__file__, "_harness")
 
 SPLITS = ("seen", "unseen")
 
@@ -88,11 +90,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", type=Path, nargs="+", required=True, help="finished run folders (one per seed)")
     parser.add_argument("--eval", default="eval_{split}.json",
                         help="the evaluation file in each run folder, {split} for seen / unseen")
-    parser.add_argument("--json", type=Path, help="where to write the result (default: print only)")
+    harness.options(parser, "json", helps={"json": "where to write the result (default: print only)"})
     parser.add_argument("--evaluate", action="store_true", help="with --eval heldout_{split}_e<N>_seed<S>.json: "
                         "first evaluate each run's checkpoint.pt where that file is missing (rl.evaluate.evaluate_many: "
                         "N deterministic episodes per object from the true reset, env seed S), --jobs at a time")
-    parser.add_argument("--jobs", type=int, default=1, help="with --evaluate: evaluations side by side (processes)")
+    harness.options(parser, "jobs", helps={"jobs": "with --evaluate: evaluations side by side (processes)"})
     args = parser.parse_args(argv)
     if "{split}" not in args.eval:
         raise ValueError(f"--eval must contain {{split}} (e.g. eval_{{split}}.json), got {args.eval!r}")

@@ -38,8 +38,10 @@ from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK
 from dexart_lite.rl.evaluate import evaluate as evaluate_policy
 from dexart_lite.rl.evaluate import load_policy
-from dexart_lite.utils import (benchmark_results, check_choice, process_pool, provenance, sigterm_interrupts,
-                               write_json)
+from dexart_lite.utils import (benchmark_results, check_choice, process_pool, provenance, sibling_script,
+                               sigterm_interrupts, write_json)
+
+harness = sibling_script(__file__, "_harness")
 
 CONDITIONS = ("intact", "no_tank")
 TANK_MARGIN = 0.002  # m behind the lid's back face; the tank's front is 4 mm behind it (objects/toilet.py)
@@ -109,11 +111,10 @@ def evaluate(ckpt: str, split: str, condition: str, episodes: int, seed: int) ->
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ckpts", nargs="+", required=True, help="toilet checkpoints (distill or PPO)")
-    parser.add_argument("--split", default="seen", help="seen or unseen")
+    harness.options(parser, "split")
     parser.add_argument("--episodes", type=int, default=5, help="episodes per object and condition")
-    parser.add_argument("--seed", type=int, default=1000, help="env seed (both conditions)")
-    parser.add_argument("--jobs", type=int, default=1, help="evaluations side by side (processes)")
-    parser.add_argument("--json", type=Path, default=benchmark_results(__file__) / "tank_ablation_toilet.json")
+    harness.options(parser, "jobs", seed=1000, json=benchmark_results(__file__) / "tank_ablation_toilet.json",
+                    helps={"seed": "env seed (both conditions)"})
     args = parser.parse_args(argv)
     check_choice("split", args.split, ("seen", "unseen"))
     if args.episodes < 1:

@@ -22,10 +22,11 @@ from pathlib import Path
 from dexart_lite import zoo
 from dexart_lite.rl.checkpoint import REQUIRED, load_checkpoint, save_checkpoint
 from dexart_lite.rl.evaluate import evaluate_checkpoint
-from dexart_lite.utils import benchmark_results, check_choice, fast_mode, provenance, write_json
+from dexart_lite.utils import benchmark_results, check_choice, fast_mode, provenance, sibling_script, write_json
 from dexart_lite.registration import TASKS
 
 RESULTS = benchmark_results(__file__) / "zoo.json"
+harness = sibling_script(__file__, "_harness")
 
 
 def pairs(values: list[str], what: str) -> dict[str, str]:
@@ -72,10 +73,10 @@ def main(argv=None) -> dict:
     parser.add_argument("--source", nargs="*", default=[], metavar="TASK=JSON",
                         help="the results JSON of the run each checkpoint comes from (its command and machine)")
     parser.add_argument("--episodes", type=int, default=3, help="evaluation episodes per seen and unseen object")
-    parser.add_argument("--seed", type=int, default=100, help="evaluation env seed (as dexart-lite eval)")
+    harness.options(parser, seed=100, helps={"seed": "evaluation env seed (as dexart-lite eval)"})
     parser.add_argument("--zoo", type=Path, default=zoo.FOLDER, help="where the checkpoints and manifest go")
-    parser.add_argument("--json", type=Path, default=RESULTS)
-    parser.add_argument("--note", default=None, help="a line stored with each policy of this call (which run, why)")
+    harness.options(parser, "note", json=RESULTS,
+                    helps={"note": "a line stored with each policy of this call (which run, why)"})
     args = parser.parse_args(argv)
     if fast_mode() and (args.json == RESULTS or args.zoo == zoo.FOLDER):
         raise ValueError("fast mode writes smoke results: pass --json and --zoo elsewhere")

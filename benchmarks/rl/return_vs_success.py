@@ -32,7 +32,6 @@ from dexart_lite.envs import make
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
-from dexart_lite.registration import TASKS
 from dexart_lite.rl.checkpoint import policy_function
 from dexart_lite.rl.evaluate import load_policy
 from dexart_lite.rollout import noisy, run_episodes
@@ -88,7 +87,6 @@ def main(argv=None) -> dict:
                         f"{', '.join(REWARD_MODES)}")
     harness.options(parser, "json")
     args = parser.parse_args(argv)
-    check_choice("task", args.task, TASKS)
     check_choice("reward", args.reward, REWARD_MODES)
     # the env each policy observes, without the reward it trained on (every run here is scored on --reward)
     loaded = [(path, actor_critic, cfg, {k: v for k, v in kwargs.items() if k != "reward"})

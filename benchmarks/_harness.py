@@ -69,9 +69,7 @@ def run_grid(job, grid: list[dict], *, jobs: int = 1, path: Path | None = None, 
     under ``rows_key``, with ``settings`` beside them) is written to ``path``, and a later call with the same
     ``settings`` reads those rows back instead of running them again. A training job is resumable on its own
     as well (``study.run_arm`` continues a run from its folder)."""
-    from tqdm import tqdm
-
-    from dexart_lite.utils import process_pool, sigterm_interrupts, write_json
+    from dexart_lite.utils import write_json
 
     settings = settings or {}
     earlier = json.loads(path.read_text()) if path is not None and path.exists() else {}
@@ -87,20 +85,30 @@ def run_grid(job, grid: list[dict], *, jobs: int = 1, path: Path | None = None, 
             done = [r for r in rows if r is not None]
             write_json(path, {**(summarise(done) if summarise else {}), rows_key: done, "settings": settings})
 
-    bar = tqdm(total=len(todo), desc=desc, unit="run", disable=len(todo) < 2)
-    with sigterm_interrupts(), process_pool(max(1, jobs)) if jobs > 1 else contextlib.nullcontext() as pool:
-        calls = [dict(grid[i]) for i in todo]
-        results = pool.map(_call, [job] * len(calls), calls) if pool else (job(**params) for params in calls)
-        for i, row in zip(todo, results):
-            finished(i, row)
-            bar.update()
-    bar.close()
+    for i, row in zip(todo, each(job, [grid[i] for i in todo], jobs=jobs, desc=desc)):
+        finished(i, row)
     return rows
 
 
-def _call(job, params: dict):
-    """``job(**params)`` in a pool's worker (``Executor.map`` passes positional arguments only)."""
-    return job(**params)
+def each(job, grid: list[dict], *, jobs: int = 1, desc: str = "runs"):
+    """``job(**params)`` for every ``params`` of ``grid``, yielded in the grid's order as they finish, ``jobs`` at
+    once in spawned processes (``job`` must then be a module-level function): with a progress bar, and a stopped
+    caller (an error, Ctrl-C, ``kill``) stops every worker. ``run_grid`` is built on it; a script with its own
+    summary (``curriculum_runs``) uses it directly."""
+    from tqdm import tqdm
+
+    from dexart_lite.utils import process_pool, sigterm_interrupts
+
+    bar = tqdm(total=len(grid), desc=desc, unit="run", disable=len(grid) < 2)
+    with sigterm_interrupts(), process_pool(max(1, jobs)) if jobs > 1 else contextlib.nullcontext() as pool:
+        # submit(job, **params): only job and its arguments cross to a worker, nothing of this module (a script's
+        # module-level job pickles by reference, this file is not importable there)
+        results = (f.result() for f in [pool.submit(job, **params) for params in grid]) if pool else \
+            (job(**params) for params in grid)
+        for row in results:
+            bar.update()
+            yield row
+    bar.close()
 
 
 def run_in_checkout(root, code: str, *args: str) -> dict:

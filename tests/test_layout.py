@@ -163,6 +163,8 @@ def test_benchmark_runner_resumes_rows_of_the_same_settings(tmp_path, load_bench
     calls.clear()
     harness.run_grid(job, grid, path=path, settings={"episodes": 5})
     assert calls == [(0, 1), (0, 2), (1, 1), (1, 2)]
+    # two at once, in spawned workers: the rows still come back in the grid's order
+    assert list(harness.each(dict, [{"seed": s} for s in range(3)], jobs=2)) == [{"seed": s} for s in range(3)]
 
 
 def test_benchmark_options_share_one_meaning(load_benchmark):

@@ -48,16 +48,16 @@ from pathlib import Path
 
 import torch
 
-import dexart_lite
 from dexart_lite.objects import list_objects
 from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig
 from dexart_lite.rl import ppo, recipes
 from dexart_lite.rl.learners import LEARNERS, learner_name
 from dexart_lite.study import run_arm
-from dexart_lite.utils import (benchmark_results, fast_mode, machine_info, process_pool, provenance, sigterm_interrupts,
-                               write_json)
+from dexart_lite.cli import add_config_arguments
+from dexart_lite.utils import benchmark_results, fast_mode, machine_info, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__) / "curriculum"
+harness = sibling_script(__file__, "_harness")
 # the one folder for runs that span several sittings: only their latest checkpoints, deleted when they finish
 IN_PROGRESS = benchmark_results(__file__).parent / "in_progress"
 # Recipes: the fast preset (4k frames per batch, 5 epochs, lr 3e-4, rewards x 0.01) plus these fields.
@@ -376,9 +376,9 @@ def distil_students(students: list[DistillConfig], path: Path, argv, note: str |
                "per_seed": [], **provenance(__file__, argv),
                "machine": {**machine_info(), "torch_threads": torch.get_num_threads()},
                **({"note": note} if note else {})}
-    with sigterm_interrupts(), process_pool(jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
-        for student, _ in zip(students, pool.map(run_arm, students) if jobs > 1 else map(run_arm, students)):
-            add_student(summary, student, path)
+    for student, _ in zip(students, harness.each(run_arm, [{"cfg": cfg} for cfg in students], jobs=jobs,
+                                                 desc="students")):
+        add_student(summary, student, path)
     return summary
 
 
@@ -501,20 +501,18 @@ def _config(folder: Path) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="laptop", choices=dexart_lite.TASKS)
+    harness.options(parser, "task")
     parser.add_argument("--obs", default="state", choices=["state", "cloud"])
     parser.add_argument("--recipe", default="reverse_bc", choices=list(RECIPES))
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
-    parser.add_argument("--frames", type=int, default=1_000_000, help="online frames per seed (at most)")
+    harness.options(parser, "jobs", seeds=[0, 1], frames=1_000_000, runs=Path("runs/curriculum"),
+                    helps={"frames": "online frames per seed (at most)", "jobs": "seeds trained at once"})
     parser.add_argument("--max-minutes", type=float, default=None, help="stop each seed's training after this")
-    parser.add_argument("--jobs", type=int, default=1, help="seeds trained at once")
-    parser.add_argument("--workers", type=int, default=1, help="collector processes per seed (PPO; 1: collect in the "
-                        "training process, as every committed run did; frames_per_batch 4000 must be a multiple)")
-    parser.add_argument("--device", default="cpu", help="where each seed's networks train (PPO): cpu, cuda or auto")
-    parser.add_argument("--eval-episodes", type=int, default=3, help="per seen and unseen object")
-    parser.add_argument("--runs", default="runs/curriculum")
+    add_config_arguments(parser, ppo.PPOConfig, names=["workers", "device"], defaults={"workers": 1}, overrides=False,
+                         helps={"workers": "collector processes per seed (PPO; 1: collect in the training process, "
+                                           "as every committed run did; frames_per_batch 4000 must be a multiple)",
+                                "device": "where each seed's networks train (PPO): cpu, cuda or auto"})
+    harness.options(parser, "eval_episodes", "note")
     parser.add_argument("--results", type=Path, default=RESULTS)
-    parser.add_argument("--note", default=None, help="a line stored in the JSON (e.g. how the runs were stopped)")
     parser.add_argument("--students-only", action="store_true",
                         help="a student recipe's distillation step alone (no RL), to <task>_cloud_student.json")
     parser.add_argument("--committed", type=Path, default=None, help="where unfinished runs are parked between "
@@ -555,17 +553,16 @@ def main(argv=None) -> dict:
                **({"note": args.note} if args.note else {})}
     # a continued run's earlier parts may have run on other machines: their records are kept, oldest first
     earlier, this_machine = (json.loads(path.read_text()) if path.exists() else None), summary["machine"]
-    with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
-        jobs = list(zip(cfgs, students))
-        for row in pool.map(run_seed, jobs) if args.jobs > 1 else map(run_seed, jobs):
-            summary["per_seed"].append(row)
-            summary.pop("earlier_machines", None)
-            summary.update(machine_records(this_machine, earlier, summary["per_seed"]))
-            for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
-                summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
-            write_json(path, summary)
-            print(f"seed {row['seed']}: {row['frames']} frames, seen {row['seen_success']:.2f}, "
-                  f"unseen {row['unseen_success']:.2f} -> {path}")
+    grid = [{"job": job} for job in zip(cfgs, students)]
+    for row in harness.each(run_seed, grid, jobs=args.jobs, desc="seeds"):  # stopped: no worker outlives it
+        summary["per_seed"].append(row)
+        summary.pop("earlier_machines", None)
+        summary.update(machine_records(this_machine, earlier, summary["per_seed"]))
+        for key in ("frames", "demo_frames", "seen_success", "unseen_success"):
+            summary[key] = sum(r[key] for r in summary["per_seed"]) / len(summary["per_seed"])
+        write_json(path, summary)
+        print(f"seed {row['seed']}: {row['frames']} frames, seen {row['seen_success']:.2f}, "
+              f"unseen {row['unseen_success']:.2f} -> {path}")
     if not args.no_committed:
         parked = park(cfgs, students, committed)
         print(f"parked in {committed} (commit it; the same command continues): {', '.join(parked) or 'nothing'}")

@@ -31,6 +31,7 @@ per h the success rate and the per-demonstration successes), command, machine; `
 from __future__ import annotations
 
 import argparse
+import functools
 from pathlib import Path
 
 import gymnasium as gym
@@ -39,7 +40,7 @@ import torch
 
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
 from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
-from dexart_lite.utils import process_pool, provenance, save_figure, sibling_script, sigterm_interrupts, write_json
+from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
 
 harness = sibling_script(__file__, "_harness")
 
@@ -136,11 +137,9 @@ def main(argv=None) -> dict:
     demos = find_demos(args.task, args.demos, "seen", args.seed)
     if max(args.h) >= min(length for *_, length in demos):
         raise ValueError(f"--h must stay below the demonstrations' first success ({min(l for *_, l in demos)} steps)")
-    jobs = [(args.task, label, path, demos, args.h, sigma, args.noise_on)
-            for label, path in args.policy for sigma in args.noise]
-    with sigterm_interrupts(), process_pool(args.jobs) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
-        results = list(pool.map(success_from_h, *zip(*jobs))) if args.jobs > 1 else \
-            [success_from_h(*job) for job in jobs]
+    grid = [{"label": label, "checkpoint": path, "noise": sigma} for label, path in args.policy for sigma in args.noise]
+    job = functools.partial(success_from_h, args.task, demos=demos, hs=args.h, noise_on=args.noise_on)
+    results = list(harness.each(job, grid, jobs=args.jobs, desc="policies"))
     result = {"task": args.task, "demos": [list(d) for d in demos], "h": args.h, "noise": args.noise,
               "noise_on": args.noise_on,
               "policies": {r["label"]: {"checkpoint": r["checkpoint"], "noise": r["noise"], "by_h": r["by_h"]}

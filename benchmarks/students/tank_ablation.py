@@ -28,18 +28,17 @@ dropped, per template; the command and machine.
 from __future__ import annotations
 
 import argparse
+import functools
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from dexart_lite import objects as objects_lib
 from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK
 from dexart_lite.rl.evaluate import evaluate as evaluate_policy
 from dexart_lite.rl.evaluate import load_policy
-from dexart_lite.utils import (benchmark_results, check_choice, process_pool, provenance, sibling_script,
-                               sigterm_interrupts, write_json)
+from dexart_lite.utils import benchmark_results, check_choice, provenance, sibling_script, write_json
 
 harness = sibling_script(__file__, "_harness")
 
@@ -122,9 +121,9 @@ def main(argv=None) -> dict:
     for ckpt in args.ckpts:
         if not Path(ckpt).is_file():
             raise FileNotFoundError(f"no checkpoint at {ckpt}")
-    work = [(c, args.split, cond, args.episodes, args.seed) for c in args.ckpts for cond in CONDITIONS]
-    with sigterm_interrupts(), process_pool(max(1, args.jobs)) as pool:  # stopped (Ctrl-C, kill): no worker outlives it
-        results = list(tqdm(pool.map(evaluate, *zip(*work)), total=len(work), desc="evaluations", unit="eval"))
+    grid = [{"ckpt": c, "condition": cond} for c in args.ckpts for cond in CONDITIONS]
+    job = functools.partial(evaluate, split=args.split, episodes=args.episodes, seed=args.seed)
+    results = list(harness.each(job, grid, jobs=args.jobs, desc="evaluations"))
     print("| checkpoint | condition | dropped | success | max stage | " +
           " | ".join(f"template {t}" for t in results[0]["templates"]) + " |")
     for r in results:

@@ -99,8 +99,9 @@ def each(job, grid: list[dict], *, jobs: int = 1, desc: str = "runs"):
 
     from dexart_lite.utils import process_pool, sigterm_interrupts
 
-    bar = tqdm(total=len(grid), desc=desc, unit="run", disable=len(grid) < 2)
-    with sigterm_interrupts(), process_pool(max(1, jobs)) if jobs > 1 else contextlib.nullcontext() as pool:
+    # the bar closes last, also when stopped: its line ends before whatever the caller prints next
+    with tqdm(total=len(grid), desc=desc, unit="run", disable=len(grid) < 2) as bar, sigterm_interrupts(), \
+            process_pool(max(1, jobs)) if jobs > 1 else contextlib.nullcontext() as pool:
         # submit(job, **params): only job and its arguments cross to a worker, nothing of this module (a script's
         # module-level job pickles by reference, this file is not importable there)
         results = (f.result() for f in [pool.submit(job, **params) for params in grid]) if pool else \
@@ -108,7 +109,6 @@ def each(job, grid: list[dict], *, jobs: int = 1, desc: str = "runs"):
         for row in results:
             bar.update()
             yield row
-    bar.close()
 
 
 def run_in_checkout(root, code: str, *args: str) -> dict:

@@ -84,8 +84,8 @@ class DistillConfig:
     """One distillation run. On Laptop (11 seen objects, 250-step episodes) the defaults collect about
     11k expert frames and 16.5k student frames, and evaluate on 85 episodes."""
 
-    task: str = field(default="laptop", metadata={"help": "the task", "choices": TASKS})
-    method: str = field(default="dagger", metadata={"help": "bc (demonstrations only) or dagger", "choices": METHODS})
+    task: str = field(default="laptop", metadata={"help": f"one of {', '.join(TASKS)}"})
+    method: str = field(default="dagger", metadata={"help": "bc (demonstrations only) or dagger"})
     encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large; or depth_cnn, the "
                          "2-D baseline (a CNN on the 64x64 depth image of the same camera instead of the cloud)"})
     split: str = field(default="seen", metadata={"help": "training objects: seen, seen_half or seen_wide (seen + "

@@ -27,7 +27,7 @@ BACKENDS = ("process", "distributed", "ray")
 class PPOConfig:
     """One training run. Defaults = DexArt's PPO (its training script + SB3's PPO defaults)."""
 
-    task: str = field(default="laptop", metadata={"help": "the task", "choices": TASKS})
+    task: str = field(default="laptop", metadata={"help": f"one of {', '.join(TASKS)}"})
     encoder: str = field(default="small", metadata={"help": "PointNet size: small, medium, large"})
     device: str = field(default="cpu", metadata={"help": "where the networks, the loss and the optimizer live: cpu, "
                         "cuda or auto (cuda where there is one); collection and evaluation stay on the CPU"})

@@ -79,22 +79,19 @@ def run_grid(job, grid: list[dict], *, jobs: int = 1, path: Path | None = None, 
     if len(todo) < len(grid):
         print(f"{path}: {len(grid) - len(todo)} of {len(grid)} rows read back (same settings)")
 
-    def finished(i: int, row: dict) -> None:
+    for i, row in zip(todo, each(job, [grid[i] for i in todo], jobs=jobs, desc=desc)):
         rows[i] = {**grid[i], **row}
         if path is not None:
             done = [r for r in rows if r is not None]
             write_json(path, {**(summarise(done) if summarise else {}), rows_key: done, "settings": settings})
-
-    for i, row in zip(todo, each(job, [grid[i] for i in todo], jobs=jobs, desc=desc)):
-        finished(i, row)
     return rows
 
 
 def each(job, grid: list[dict], *, jobs: int = 1, desc: str = "runs"):
     """``job(**params)`` for every ``params`` of ``grid``, yielded in the grid's order as they finish, ``jobs`` at
     once in spawned processes (``job`` must then be a module-level function): with a progress bar, and a stopped
-    caller (an error, Ctrl-C, ``kill``) stops every worker. ``run_grid`` is built on it; a script with its own
-    summary (``curriculum_runs``) uses it directly."""
+    caller (an error, Ctrl-C, ``kill``) stops every worker. The job's rows come back as they are; ``run_grid``
+    adds the parameters to them and the resumable JSON."""
     from tqdm import tqdm
 
     from dexart_lite.utils import process_pool, sigterm_interrupts

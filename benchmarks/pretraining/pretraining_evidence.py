@@ -125,9 +125,9 @@ def run_ppo(args) -> int:
                                                          pretrained=pretrained, eval_episodes=args.eval_episodes,
                                                          workers=args.workers)}
             for arm, pretrained in arms.items() for seed in args.seeds]
-    rows = harness.run_grid(ppo_run, grid, desc="PPO runs")
+    rows = list(harness.each(ppo_run, grid, desc="PPO runs"))
     for arm in arms:
-        runs = [{k: v for k, v in r.items() if k not in ("arm", "cfg")} for r in rows if r["arm"] == arm]
+        runs = [row for params, row in zip(grid, rows) if params["arm"] == arm]
         summary["arms"][arm] = {"runs": runs, **{f"success_{split}": sum(r[f"success_{split}"] for r in runs) / len(runs)
                                                  for split in ("seen", "unseen")}}
     args.results.mkdir(parents=True, exist_ok=True)
@@ -143,7 +143,7 @@ def ppo_run(arm: str, seed: int, cfg) -> dict:
     """One PPO run through ``study.run_arm`` (trained, continued from its checkpoint, or read back)."""
     record = run_arm(cfg)
     print(f"{arm} seed {seed}: {record['wall_time_s'] / 60:.1f} min", flush=True)
-    return {"out": cfg.out, "success_seen": record["seen_success"], "success_unseen": record["unseen_success"],
+    return {"seed": seed, "out": cfg.out, "success_seen": record["seen_success"], "success_unseen": record["unseen_success"],
             "wall_minutes": round(record["wall_time_s"] / 60, 1),
             "curve": [{k: h[k] for k in ("frames", "episode_return", "success_rate", "progress")}
                       for h in record["history"]]}

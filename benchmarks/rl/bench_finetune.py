@@ -74,7 +74,7 @@ def run_seed(seed: int, student: str, cfg: ppo.PPOConfig) -> dict:
     before = student_success(Path(student), cfg)
     print(f"seed {seed}: student {before['seen']:.2f} / {before['unseen']:.2f} -> PPO {record['seen_success']:.2f} / "
           f"{record['unseen_success']:.2f} (seen / unseen), {record['wall_time_s'] / 60:.1f} min")
-    return {"student_seen": before["seen"], "student_unseen": before["unseen"],
+    return {"seed": seed, "student": student, "student_seen": before["seen"], "student_unseen": before["unseen"],
             "seen_success": record["seen_success"], "unseen_success": record["unseen_success"],
             "frames": record["frames"], "wall_time_s": record["wall_time_s"], "resumed": record["continued"],
             "history": [{k: row[k] for k in KEEP if k in row} for row in record["history"]],
@@ -136,14 +136,14 @@ def main(argv=None) -> dict:
         if args.json is None:
             path = args.runs / "bench_finetune_fast.json"
 
-    def config(seed: int) -> ppo.PPOConfig:
+    def job(seed: int) -> dict:
         name = "_".join(filter(None, ("finetune", args.task, args.variant, f"s{seed}")))
         student = args.students.format(seed=seed)
-        return ppo.preset("finetune", task=args.task, frames=args.frames, seed=seed, out=str(args.runs / name),
-                          init_from=str(Path(student) / "checkpoint.pt"), **overrides)
+        return {"seed": seed, "student": student, "cfg": ppo.preset(
+            "finetune", task=args.task, frames=args.frames, seed=seed, out=str(args.runs / name),
+            init_from=str(Path(student) / "checkpoint.pt"), **overrides)}
 
-    grid = [{"seed": seed, "student": args.students.format(seed=seed), "cfg": config(seed)} for seed in args.seeds]
-    per_seed = [{k: v for k, v in row.items() if k != "cfg"} for row in harness.run_grid(run_seed, grid, desc="seeds")]
+    per_seed = list(harness.each(run_seed, [job(seed) for seed in args.seeds], desc="seeds"))
     mean = lambda key: float(np.mean([r[key] for r in per_seed]))  # noqa: E731
     std = lambda key: float(np.std([r[key] for r in per_seed]))  # noqa: E731
     result = {"task": args.task, "seeds": args.seeds, "preset": "finetune", "variant": args.variant,

@@ -84,7 +84,7 @@ def main(argv=None) -> dict:
     grid = [{"arch": arch, "seed": seed} for arch in args.arch for seed in args.seeds]
     settings = {k: getattr(args, k) for k in ("task", "obs", "demo_episodes", "demo_noise", "epochs", "rounds",
                                               "eval_episodes")}
-    rows = harness.run_grid(functools.partial(clone, **settings), grid, jobs=args.jobs, desc="clones")
+    rows = list(harness.each(functools.partial(clone, **settings), grid, jobs=args.jobs, desc="clones"))
     summary = {arch: {split: float(np.mean([r[f"{split}_success"] for r in rows if r["arch"] == arch]))
                       for split in ("seen", "unseen")} for arch in args.arch}
     result = {"task": args.task, "obs": args.obs, "demo_episodes": args.demo_episodes, "demo_noise": args.demo_noise,

@@ -144,11 +144,11 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     start = time.perf_counter()
     grid = [{"task": task, "seed": seed} for task in args.tasks for seed in args.seeds]
-    rows = harness.run_grid(functools.partial(state_run, args.frames, args.eval_episodes, args.preset,
-                                              args.json.parent), grid, desc="runs")
+    rows = list(harness.each(functools.partial(state_run, args.frames, args.eval_episodes, args.preset,
+                                               args.json.parent), grid, desc="runs"))
     tasks = {}
     for task in args.tasks:
-        runs = [{k: v for k, v in r.items() if k != "task"} for r in rows if r["task"] == task]
+        runs = [row for params, row in zip(grid, rows) if params["task"] == task]
         firsts = [r["frames_to_first_success"] for r in runs]
         tasks[task] = {"per_seed": runs, "frames_to_first_success": firsts,
                        "seeds_with_a_success": sum(f is not None for f in firsts),

@@ -49,7 +49,7 @@ def run_seed(cfg: DistillConfig) -> dict:
         print(f"{cfg.out}: finished before, read back")
     print(f"seed {cfg.seed}: seen {result['seen_success']:.2f}, unseen {result['unseen_success']:.2f}, "
           f"{result['wall_time_s'] / 60:.1f} min")
-    return result
+    return {"seed": cfg.seed, **result}
 
 
 def main(argv=None) -> dict:
@@ -81,9 +81,8 @@ def main(argv=None) -> dict:
         return DistillConfig(task=args.task, method=args.method, encoder=args.encoder, seed=seed,
                              out=str(args.runs / folder), **overrides)
 
-    per_seed = harness.run_grid(run_seed, [{"cfg": config(seed)} for seed in args.seeds], jobs=args.jobs,
-                                desc="seeds")
-    per_seed = [{"seed": row.pop("cfg").seed, **row} for row in per_seed]
+    per_seed = list(harness.each(run_seed, [{"cfg": config(seed)} for seed in args.seeds], jobs=args.jobs,
+                                 desc="seeds"))
     result = summary(per_seed, args.task, args.method, args.encoder, argv)
     result["variant"], result["overrides"] = args.variant, requested
     result["expert"] = SOLVERS[args.task].__name__  # the teacher: the task's expert when the study ran

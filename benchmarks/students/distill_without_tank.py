@@ -91,8 +91,8 @@ def main(argv=None) -> dict:
         raise ValueError(f"--prob must be a probability in [0, 1], got {args.prob}")
     cfgs = [student_config(seed, args.runs, 1 if args.jobs > 1 else 0) for seed in args.seeds]
     # with --jobs > 1 each seed runs in a spawned worker with its own wrapped make; here the wrap is undone after each
-    per_seed = harness.run_grid(distil, [{"cfg": cfg, "prob": args.prob} for cfg in cfgs], jobs=args.jobs, desc="seeds")
-    per_seed = [{k: v for k, v in row.items() if k not in ("cfg", "prob")} for row in per_seed]
+    per_seed = list(harness.each(distil, [{"cfg": cfg, "prob": args.prob} for cfg in cfgs], jobs=args.jobs,
+                                 desc="seeds"))
     out = {"task": "toilet", "prob": args.prob, "student_settings": str(STUDENT.name), "per_seed": per_seed,
            "seen_success": float(np.mean([r["seen_success"] for r in per_seed])),
            "unseen_success": float(np.mean([r["unseen_success"] for r in per_seed])),

@@ -7,7 +7,7 @@ For each ``TASK=CHECKPOINT``: the weights, config, sizes and history of the chec
 written to ``dexart_lite/zoo/<task>.pt`` (at most 2 MB), loaded back strictly and evaluated as ``dexart-lite eval
 --ckpt zoo:<task>`` does (deterministic actions from the true reset, ``--episodes`` per seen and unseen object,
 env seed 100). The measurements go to ``benchmarks/results/students/zoo.json`` (per task: file, bytes, trainer, frames,
-seed, the training command (from ``--source``, the results JSON the run belongs to), the machine, ``--note``, seen_success,
+seed, the training command (from ``--source``, the results JSON the run belongs to, or ``--training-command``), the machine, ``--note``, seen_success,
 unseen_success, eval_episodes_per_object, eval_seed, mean_max_stage; the command and machine of this script),
 and the same entries to ``dexart_lite/zoo/manifest.json``, which the package reads. Tasks not named keep their
 entries.
@@ -72,6 +72,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--policy", nargs="+", required=True, metavar="TASK=CHECKPOINT")
     parser.add_argument("--source", nargs="*", default=[], metavar="TASK=JSON",
                         help="the results JSON of the run each checkpoint comes from (its command and machine)")
+    parser.add_argument("--training-command", nargs="*", default=[], metavar="TASK=COMMAND",
+                        help="the command that trained a policy, where its --source records only the step that "
+                             "collected finished runs into it (bench_distill.py --collect)")
     parser.add_argument("--episodes", type=int, default=3, help="evaluation episodes per seen and unseen object")
     harness.options(parser, seed=100, helps={"seed": "evaluation env seed (as dexart-lite eval)"})
     parser.add_argument("--zoo", type=Path, default=zoo.FOLDER, help="where the checkpoints and manifest go")
@@ -81,11 +84,14 @@ def main(argv=None) -> dict:
     if fast_mode() and (args.json == RESULTS or args.zoo == zoo.FOLDER):
         raise ValueError("fast mode writes smoke results: pass --json and --zoo elsewhere")
     policies, sources = pairs(args.policy, "policy"), pairs(args.source, "source")
+    commands = pairs(args.training_command, "training-command")
     manifest_path = args.zoo / zoo.MANIFEST.name
     entries = json.loads(manifest_path.read_text())["policies"] if manifest_path.exists() else {}
     for task, source in policies.items():
         path = ship(task, Path(source), args.zoo)
         training = json.loads(Path(sources[task]).read_text()) if task in sources else None
+        if task in commands:
+            training = {**(training or {}), "command": commands[task]}
         entries[task] = measure(task, path, args.episodes, args.seed, training)
         if args.note:
             entries[task]["note"] = args.note

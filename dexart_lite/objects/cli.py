@@ -120,7 +120,8 @@ def _montage(args) -> int:
 
     for c in objects.CATEGORIES:
         out = args.out_dir / f"montage_{c}.png"
-        pictures.montage(c, objects.list_objects(c, "seen") + objects.list_objects(c, "unseen"), out)
+        infos = [info for split in objects.FOLDERS for info in objects.list_objects(c, split)]
+        pictures.montage(c, infos, out)
         print(f"wrote {out}")
     return 0
 

@@ -61,8 +61,12 @@ def show(info: ObjectInfo, out: Path, size: int = 256) -> list[float]:
     return angles
 
 
+SPLIT_COLORS = {"seen": "black", "unseen": "tab:blue", "wide": "tab:green"}  # title colour per object folder
+
+
 def montage(category: str, infos: list[ObjectInfo], out: Path, size: int = 200, columns: int = 6) -> None:
-    """One tile per object (seen first, then unseen), all at ``MONTAGE_ANGLE[category]``."""
+    """One tile per object (in the order given: seen, unseen, then the wide training split), all at
+    ``MONTAGE_ANGLE[category]``; titles coloured by split."""
     rows = -(-len(infos) // columns)
     fig = Figure(figsize=(2.2 * columns, 2.4 * rows))
     axes = np.atleast_2d(fig.subplots(rows, columns))
@@ -70,11 +74,11 @@ def montage(category: str, infos: list[ObjectInfo], out: Path, size: int = 200, 
         ax.axis("off")
     for ax, info in zip(axes.flat, infos):
         ax.imshow(render(info, MONTAGE_ANGLE[category], size))
-        color = "black" if info.split == "seen" else "tab:blue"
+        color = SPLIT_COLORS[info.split]
         ax.set_title(f"{info.split} {info.index} ({info.template})\n{info.name}", fontsize=7, color=color)
-    fig.suptitle(f"{category}: {sum(i.split == 'seen' for i in infos)} seen (black), "
-                 f"{sum(i.split == 'unseen' for i in infos)} unseen (blue); q = {MONTAGE_ANGLE[category]} rad",
-                 fontsize=10)
-    fig.tight_layout()
+    counts = ", ".join(f"{sum(i.split == s for i in infos)} {s} ({c.removeprefix('tab:')})"
+                       for s, c in SPLIT_COLORS.items() if any(i.split == s for i in infos))
+    fig.suptitle(f"{category}: {counts}; q = {MONTAGE_ANGLE[category]} rad", fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / (2.4 * rows)))  # 0.4 in above the tiles for the suptitle
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=80)

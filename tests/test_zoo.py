@@ -83,5 +83,11 @@ def test_zoo_build_ships_a_checkpoint_without_its_optimizer_and_writes_the_field
     for key in ("bytes", "trainer", "seed", "training_command", "seen_success", "unseen_success",
                 "eval_episodes_per_object", "eval_seed", "mean_max_stage"):
         assert key in entry, key
+    # a source that only collected finished runs (bench_distill --collect) is given the command that trained it
+    (tmp_path / "source.json").write_text(json.dumps({"command": "bench_distill.py --collect runs/a", "machine": {}}))
+    entry = bench.main(["--policy", f"laptop={source}", "--source", f"laptop={tmp_path / 'source.json'}",
+                        "--training-command", "laptop=bench_distill.py --task laptop --set threads=1", "--episodes",
+                        "1", "--zoo", str(tmp_path / "zoo"), "--json", str(tmp_path / "zoo.json")])["policies"]["laptop"]
+    assert entry["training_command"] == "bench_distill.py --task laptop --set threads=1"
     with pytest.raises(ValueError, match="not laptop|is a laptop policy, not faucet"):
         bench.main(["--policy", f"faucet={source}", "--zoo", str(tmp_path / "zoo"), "--json", str(tmp_path / "z.json")])

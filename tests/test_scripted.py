@@ -252,7 +252,8 @@ def test_exploration_noise_benchmark_averages_its_seeds(monkeypatch, load_benchm
 def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a_smoke_run(
         tmp_path, monkeypatch, load_benchmark):
     """benchmarks/experts/synergy_expert.py in fast mode: one row per task and split from a hand="synergy" env (whose
-    action check refuses a 22-D action); a smoke run is not set beside the committed full-hand success."""
+    action check refuses a 22-D action); a smoke run is not set beside the committed full-hand success; a second call
+    keeps the rows it did not run."""
     import json
 
     monkeypatch.setenv("DEXART_LITE_FAST", "1")
@@ -261,6 +262,11 @@ def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a
     rows = json.loads((tmp_path / "s.json").read_text())["rows"]
     assert [(r["task"], r["split"]) for r in rows] == [("laptop", "seen")]
     assert rows[0]["synergy_success"] == 1.0 and rows[0]["full_hand_success"] is None
+    # one task measured again: the other rows of the same file are kept, in the tasks' order
+    bench.main(["--tasks", "faucet", "--splits", "seen", "--json", str(tmp_path / "s.json")])
+    rows = json.loads((tmp_path / "s.json").read_text())["rows"]
+    assert [(r["task"], r["split"]) for r in rows] == [("faucet", "seen"), ("laptop", "seen")]
+    assert "command" in rows[1] and "command" not in rows[0]
 
 
 # ----------------------------------------------------------------------------- physics settings

@@ -11,7 +11,9 @@ An expert that still succeeds shows that the smaller action space holds a soluti
     python benchmarks/experts/synergy_expert.py --json benchmarks/results/experts/synergy_expert.json
 
 Writes one row per task and split: the projected expert's success and stage next to the committed
-success of the full-hand expert (read from ``solve_<task>_<split>.json``).
+success of the full-hand expert (read from ``solve_<task>_<split>.json``). Rows of an existing ``--json`` for tasks
+and splits not run in this call are kept (with the command and machine that measured them), as long as it used the
+same episodes and seed.
 """
 
 from __future__ import annotations
@@ -19,9 +21,11 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 from dexart_lite.experts.solve import solve
-from dexart_lite.objects import list_objects
+from dexart_lite.objects import SPLITS, list_objects
+from dexart_lite.registration import TASKS
 from dexart_lite.utils import benchmark_results, fast_mode, provenance, sibling_script, write_json
 
 RESULTS = benchmark_results(__file__)
@@ -59,12 +63,26 @@ def main(argv=None) -> dict:
         full = "n/a" if r["full_hand_success"] is None else f"{r['full_hand_success']:.2f}"
         print(f"| {r['task']} | {r['split']} | {full} | {r['synergy_success']:.2f} | "
               f"{r['synergy_mean_max_stage']:.2f} |")
+    rows = sorted(kept_rows(args, rows) + rows, key=lambda r: (TASKS.index(r["task"]), SPLITS.index(r["split"])))
     result = {"episodes_per_object": args.episodes_per_object, "seed": args.seed, "rows": rows,
               **provenance(__file__, argv)}
     if args.json:
         write_json(args.json, result)
         print(f"wrote {args.json}")
     return result
+
+
+def kept_rows(args, rows: list[dict]) -> list[dict]:
+    """The rows of an existing ``--json`` (same episodes and seed) for the tasks and splits not run in this call, so
+    that one task can be measured again (``--tasks bucket``) without running the others."""
+    if not args.json or not Path(args.json).is_file():
+        return []
+    previous = json.loads(Path(args.json).read_text())
+    if (previous["episodes_per_object"], previous["seed"]) != (args.episodes_per_object, args.seed):
+        return []
+    fresh = {(r["task"], r["split"]) for r in rows}
+    return [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous["rows"]
+            if (r["task"], r["split"]) not in fresh]
 
 
 if __name__ == "__main__":

@@ -247,7 +247,7 @@ TOILET_TEMPLATES = [
     ("RL from the curriculum's students (`student_anchored_floor`)", ["rl/success_by_template_toilet_floor_heldout.json"]),
     ("RL, reverse curriculum (`student_anchored_floor_reverse_d17`)",
      ["rl/success_by_template_toilet_reverse_heldout.json"]),
-    ("RL from the `wide` students on seen + wide toilets (`student_wide_anchored_floor_reverse_d34_std05`, 468k)",
+    ("RL from the `wide` students on seen + wide toilets (`student_wide_anchored_floor_reverse_d34_std05`, 818k)",
      ["rl/success_by_template_toilet_wide_rl_heldout.json"]),
 ]
 

@@ -7,8 +7,9 @@ For each ``TASK=CHECKPOINT``: the weights, config, sizes and history of the chec
 written to ``dexart_lite/zoo/<task>.pt`` (at most 2 MB), loaded back strictly and evaluated as ``dexart-lite eval
 --ckpt zoo:<task>`` does (deterministic actions from the true reset, ``--episodes`` per seen and unseen object,
 env seed 100). The measurements go to ``benchmarks/results/students/zoo.json`` (per task: file, bytes, trainer, frames,
-seed, the training command (from ``--source``, the results JSON the run belongs to, or ``--training-command``), the machine, ``--note``, seen_success,
-unseen_success, eval_episodes_per_object, eval_seed, mean_max_stage; the command and machine of this script),
+seed, the training command (from ``--source``, the results JSON the run belongs to, or ``--training-command``), the
+machine, ``--note``, seen_success, unseen_success, eval_episodes_per_object, eval_seed, mean_max_stage; the command
+and machine of this script),
 and the same entries to ``dexart_lite/zoo/manifest.json``, which the package reads. Tasks not named keep their
 entries.
 """

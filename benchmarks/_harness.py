@@ -87,6 +87,15 @@ def run_grid(job, grid: list[dict], *, jobs: int = 1, path: Path | None = None, 
     return rows
 
 
+def rows_not_rerun(previous: dict, rows: list[dict], key, rows_key: str = "rows") -> list[dict]:
+    """The rows of an earlier result ``previous`` (its ``rows_key`` list) that no row of ``rows`` measures again (by
+    ``key(row)``), each with the command and machine that measured it (its own where it has them, else the earlier
+    file's): for a script that measures part of its grid again and keeps the rest of its JSON."""
+    fresh = {key(r) for r in rows}
+    return [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous[rows_key]
+            if key(r) not in fresh]
+
+
 def each(job, grid: list[dict], *, jobs: int = 1, desc: str = "runs"):
     """``job(**params)`` for every ``params`` of ``grid``, yielded in the grid's order as they finish, ``jobs`` at
     once in spawned processes (``job`` must then be a module-level function): with a progress bar, and a stopped

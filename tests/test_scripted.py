@@ -267,6 +267,8 @@ def test_synergy_expert_benchmark_runs_the_projected_expert_and_never_compares_a
     rows = json.loads((tmp_path / "s.json").read_text())["rows"]
     assert [(r["task"], r["split"]) for r in rows] == [("faucet", "seen"), ("laptop", "seen")]
     assert "command" in rows[1] and "command" not in rows[0]
+    with pytest.raises(ValueError, match="at seed 0, not 1 at 5: run every task or pass --json elsewhere"):
+        bench.main(["--tasks", "faucet", "--splits", "seen", "--seed", "5", "--json", str(tmp_path / "s.json")])
 
 
 # ----------------------------------------------------------------------------- physics settings

@@ -12,7 +12,7 @@ An expert that still succeeds shows that the smaller action space holds a soluti
 
 Writes one row per task and split: the projected expert's success and stage next to the committed
 success of the full-hand expert (read from ``solve_<task>_<split>.json``). Rows of an existing ``--json`` for tasks
-and splits not run in this call are kept (with the command and machine that measured them), as long as it used the
+and splits not run in this call are kept (with the command and machine that measured them); it must have used the
 same episodes and seed.
 """
 
@@ -73,16 +73,18 @@ def main(argv=None) -> dict:
 
 
 def kept_rows(args, rows: list[dict]) -> list[dict]:
-    """The rows of an existing ``--json`` (same episodes and seed) for the tasks and splits not run in this call, so
-    that one task can be measured again (``--tasks bucket``) without running the others."""
+    """The rows of an existing ``--json`` for the tasks and splits not run in this call, so that one task can be
+    measured again (``--tasks bucket``) without running the others; refused where that file used other episodes or
+    another seed (its rows would not be comparable)."""
     if not args.json or not Path(args.json).is_file():
         return []
     previous = json.loads(Path(args.json).read_text())
-    if (previous["episodes_per_object"], previous["seed"]) != (args.episodes_per_object, args.seed):
-        return []
-    fresh = {(r["task"], r["split"]) for r in rows}
-    return [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous["rows"]
-            if (r["task"], r["split"]) not in fresh]
+    kept = harness.rows_not_rerun(previous, rows, lambda r: (r["task"], r["split"]))
+    if kept and (previous["episodes_per_object"], previous["seed"]) != (args.episodes_per_object, args.seed):
+        raise ValueError(f"{args.json} holds rows of {previous['episodes_per_object']} episodes per object at seed "
+                         f"{previous['seed']}, not {args.episodes_per_object} at {args.seed}: run every task or pass "
+                         f"--json elsewhere")
+    return kept
 
 
 if __name__ == "__main__":

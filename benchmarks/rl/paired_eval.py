@@ -82,9 +82,7 @@ def merge_rows(previous: dict, rows: list[dict], episodes: int, seed: int) -> li
     if (previous["episodes_per_object"], previous["eval_seed"]) != (episodes, seed):
         raise ValueError(f"the existing results use {previous['episodes_per_object']} episodes per object at seed "
                          f"{previous['eval_seed']}, not {episodes} at {seed}: pass --out elsewhere")
-    fresh = {(r["task"], r["recipe"]) for r in rows}
-    kept = [{"command": previous["command"], "machine": previous["machine"], **r} for r in previous["runs"]
-            if (r["task"], r["recipe"]) not in fresh]
+    kept = harness.rows_not_rerun(previous, rows, lambda r: (r["task"], r["recipe"]), rows_key="runs")
     return sorted(kept + rows, key=lambda r: (r["task"], r["recipe"], r["seed"]))  # the order of a full call
 
 

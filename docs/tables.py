@@ -58,6 +58,11 @@ def std(values) -> float:
     return statistics.pstdev(values) if len(values) > 1 else 0.0
 
 
+def se(values) -> float:
+    """The standard error of the mean over runs (sample std / sqrt(n); 0 for one run), the protocol's ±."""
+    return statistics.stdev(values) / len(values) ** 0.5 if len(values) > 1 else 0.0
+
+
 def f2(x: float) -> str:
     """Two decimals, halves rounded up as a reader would (0.625, 75 of 120 episodes, is 0.63)."""
     return str(Decimal(repr(x)).quantize(Decimal("0.01"), rounding=ROUND_HALF_UP)).replace("-0.00", "0.00")
@@ -285,7 +290,7 @@ def toilet_templates() -> str:
         if ["policies", "runs", *names, "files"] != header:
             raise ValueError(f"{rels}: other templates than the rows above")
         files = ", ".join(link(rel, f"JSON {i + 1}" if len(rels) > 1 else "JSON") for i, rel in enumerate(rels))
-        rows.append([label, str(len(values["seen"])), *(pm(mean(v), std(v)) for v in values.values()), files])
+        rows.append([label, str(len(values["seen"])), *(pm(mean(v), se(v)) for v in values.values()), files])
     return table(header, rows)
 
 

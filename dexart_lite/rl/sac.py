@@ -334,6 +334,16 @@ def learn(steps: int, cfg: SACConfig, loss, updater, optimizer, online, demo_buf
     return {**{k: (v / steps if steps else math.nan) for k, v in sums.items()}, "demo_share": demo_share}
 
 
+def make_buffers(cfg: SACConfig, demos, keys) -> tuple:
+    """The online replay buffer and, with demonstrations mixed in, a second buffer holding them (else ``None``)."""
+    online = make_buffer(cfg.buffer)
+    if demos is None or cfg.demo_fraction <= 0:
+        return online, None
+    demo_buffer = make_buffer(len(demos))
+    store(demo_buffer, demos, keys, cfg.reward_scale, demo=True)
+    return online, demo_buffer
+
+
 def train(cfg: SACConfig) -> dict:
     """Train, evaluate on seen and unseen objects, write the report; returns the paths and results."""
     from torchrl.collectors import Collector
@@ -354,10 +364,7 @@ def train(cfg: SACConfig) -> dict:
     demos, demo_info = demonstrations(cfg)
     actor, loss, updater, optimizer, dims = build(cfg, env_fn, demos)
     keys = transition_keys(network_encoder(asdict(cfg)))
-    online, demo_buffer = make_buffer(cfg.buffer), None
-    if demos is not None and cfg.demo_fraction > 0:
-        demo_buffer = make_buffer(len(demos))
-        store(demo_buffer, demos, keys, cfg.reward_scale, demo=True)
+    online, demo_buffer = make_buffers(cfg, demos, keys)
     curriculum = make_curriculum(cfg)
     frames_done, batches, history = (restore(out / CHECKPOINT, cfg, actor, loss, optimizer, online, curriculum)
                                      if cfg.resume else (0, 0, []))

@@ -222,10 +222,16 @@ STUDENTS = {"faucet": "distill_faucet_episodes2x.json", "bucket": "distill_bucke
 # ranges: outlines up to superellipse exponent 3, 6 of them tankless; dexart_lite/objects/toilet.py widen) with the same
 # number of episodes: 5 demonstrations and 2 DAgger episodes per object and round over 34 toilets (9 and 4 over 17).
 # The widening was chosen knowing that the held-out template C is squarish (exponent 3.5-5) and tankless
+# thumbfirst_successonly2x: the toilets' student recipe (twice the demonstrations and DAgger episodes per object, only
+# the successful DAgger episodes kept) for the buckets: the overhand expert does not recover from perturbed states
+# (0.00 at std 0.3), so its labels in the states of failed episodes lead nowhere, and its last rounds' collections
+# lift 0.45-0.68 of the buckets
 STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "rounds10": {"rounds": 10},
                     "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}, "thumbfirst": {},
                     "wide": {"drop_failed": True, "split": "seen_wide", "demo_episodes_per_object": 5,
-                             "episodes_per_round": 2}}
+                             "episodes_per_round": 2},
+                    "thumbfirst_successonly2x": {"drop_failed": True, "demo_episodes_per_object": 9,
+                                                 "episodes_per_round": 4}}
 # student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
 RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
 # student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students
@@ -237,6 +243,9 @@ RECIPES["student_successonly_anchored_floor_reverse_d17"] = {**RECIPES["student_
 # student_thumbfirst_anchored_floor_flat_b16k_std03: the bucket's RL recipe from the thumb-first expert's students
 RECIPES["student_thumbfirst_anchored_floor_flat_b16k_std03"] = {**RECIPES["student_anchored_floor_flat_b16k_std03"],
                                                                 "student": "thumbfirst"}
+# ... and from the students of the toilets' student recipe (thumbfirst_successonly2x)
+RECIPES["student_thumbfirst_successonly2x_anchored_floor_flat_b16k_std03"] = {
+    **RECIPES["student_anchored_floor_flat_b16k_std03"], "student": "thumbfirst_successonly2x"}
 # student_successonly_anchored_release: the toilets' headline RL recipe (student_anchored_release, 38 min per seed)
 # from the successonly students, RL's gain over the better students on the same budget
 RECIPES["student_successonly_anchored_release"] = {**RECIPES["student_anchored_release"], "student": "successonly"}

@@ -50,6 +50,19 @@ class Options:
     runs: Path = field(default=Path("runs"), metadata={"help": "parent of the per-run folders"})
     json: Path | None = field(default=None, metadata={"help": "write the results here"})
     note: str | None = field(default=None, metadata={"help": "a line stored in the JSON (e.g. how a run was stopped)"})
+    obs: str = field(default="state", metadata={"help": "the learner's observation: the object's state or the point "
+                                                        "cloud", "choices": ["state", "cloud"]})
+    results: Path | None = field(default=None, metadata={"help": "the folder the JSON and PNG files go to"})
+    png: Path | None = field(default=None, metadata={"help": "also plot the result to this PNG"})
+    cache: Path = field(default=Path("runs/checkpoints_from_git"),
+                        metadata={"help": "where checkpoints named REV:path are extracted from git"})
+    threads: int = field(default=0, metadata={"help": "torch threads (0: all cores)"})
+    # timings (benchmarks/perf): each measurement repeated, interleaved with the others, its median reported
+    steps: int = field(default=400, metadata={"help": "env steps per timed measurement"})
+    resets: int = field(default=400, metadata={"help": "env resets per timed measurement"})
+    rounds: int = field(default=3, metadata={"help": "repeats of each timed measurement, interleaved (median)"})
+    ref: str | None = field(default=None, metadata={"help": "an earlier commit measured side by side (in a git "
+                                                           "worktree)"})
 
 
 def options(parser, *names: str, helps: dict | None = None, **defaults) -> None:

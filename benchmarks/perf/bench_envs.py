@@ -92,14 +92,12 @@ def reset_rss_growth_mb(resets: int) -> float:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    harness.options(parser, "tasks")
-    parser.add_argument("--steps", type=int, default=400, help="steps per measurement")
-    parser.add_argument("--rounds", type=int, default=3, help="repeats of the 1-process measurements (median)")
-    parser.add_argument("--resets", type=int, default=2000, help="resets of the memory check (0: skip it)")
+    harness.options(parser, "tasks", "steps", "rounds", resets=2000,
+                    helps={"resets": "resets of the memory check (0: skip it)"})
     parser.add_argument("--two-process", action=argparse.BooleanOptionalAction, default=True,
                         help="also measure two worker processes stepping at once")
-    parser.add_argument("--ref", help="an earlier commit whose 1-process rate is measured side by side")
-    harness.options(parser, "json")
+    harness.options(parser, "ref", "json", helps={"ref": "an earlier commit whose 1-process rate is measured side by "
+                                                         "side"})
     args = parser.parse_args(argv)
 
     tasks = {}

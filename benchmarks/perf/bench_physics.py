@@ -79,8 +79,7 @@ def main(argv=None) -> dict:
     harness.options(parser, "tasks")
     parser.add_argument("--settings", nargs="+", default=[BASELINE, "30x10", "20x10", "50x5"],
                         help="ITERATIONSxFRAME_SKIP, the first one the baseline (default: 50x10 30x10 20x10 50x5)")
-    parser.add_argument("--steps", type=int, default=400, help="env steps per speed measurement")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of the speed measurements (median)")
+    harness.options(parser, "steps", "rounds")
     parser.add_argument("--speed", action=argparse.BooleanOptionalAction, default=True,
                         help="measure the steps/s of every setting (alone on the machine: these are timings)")
     parser.add_argument("--solvers", action=argparse.BooleanOptionalAction, default=True,

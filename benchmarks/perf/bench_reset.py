@@ -45,11 +45,7 @@ def measure(package_root: Path, task: str, resets: int) -> float:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    harness.options(parser, "tasks")
-    parser.add_argument("--resets", type=int, default=400, help="timed resets per measurement")
-    parser.add_argument("--rounds", type=int, default=3, help="alternating repeats (median reported)")
-    parser.add_argument("--ref", help="an earlier commit to measure side by side (git worktree)")
-    harness.options(parser, "json")
+    harness.options(parser, "tasks", "resets", "rounds", "ref", "json")
     args = parser.parse_args(argv)
     roots = {"this": ROOT}
     start = time.time()

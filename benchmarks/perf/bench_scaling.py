@@ -97,8 +97,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--backends", nargs="+", default=["process", "ray"], choices=["process", "ray"])
     harness.options(parser, frames=4000, helps={"frames": "timed frames per setting"})
     parser.add_argument("--per-worker", type=int, default=500, help="frames per worker per batch")
-    parser.add_argument("--steps", type=int, default=1000, help="env steps per process (plain_env)")
-    harness.options(parser, json=RESULTS)
+    harness.options(parser, steps=1000, json=RESULTS, helps={"steps": "env steps per process (plain_env)"})
     args = parser.parse_args(argv)
     if fast_mode() and args.json == RESULTS:
         raise ValueError("fast mode writes smoke results: pass --json elsewhere")

@@ -203,10 +203,7 @@ def print_tables(result: dict) -> None:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    harness.options(parser, "task")
-    parser.add_argument("--rounds", type=int, default=7)
-    parser.add_argument("--steps", type=int, default=40, help="control steps per part per round")
-    harness.options(parser, "json")
+    harness.options(parser, "task", "json", rounds=7, steps=40, helps={"steps": "control steps per part per round"})
     args = parser.parse_args(argv)
 
     env = make(args.task, point_noise=True, camera_noise=True).unwrapped

@@ -76,8 +76,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--chunks", nargs="+", type=int, default=[pointnet.CHUNK],
                         help="clouds per per-point pass (pointnet.CHUNK); with more than one, every label runs once "
                         "per chunk")
-    parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores, as distill)")
-    harness.options(parser, "json", helps={"json": "where to write the results (default: print only)"})
+    harness.options(parser, "threads", "json", helps={"json": "where to write the results (default: print only)"})
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.samples, args.epochs, args.repeats = min(args.samples, 64), 1, 1

@@ -355,10 +355,11 @@ def main(argv=None) -> dict:
     harness.options(parser, "task", frames=4000, helps={"frames": "timed frames per collection variant and round"})
     parser.add_argument("--collector-batch", type=int, default=ppo.PRESETS["cpu"]["frames_per_batch"],
                         help="frames per collector batch (train: 4000 on the cpu preset, 20000 faithful)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of the collection variants (median)")
     parser.add_argument("--reps", type=int, default=5, help="timed minibatches per encoder (median)")
     parser.add_argument("--iteration-batches", type=int, default=3, help="cpu-preset batches (first one not timed)")
-    parser.add_argument("--ref", help="an earlier commit whose whole cpu-preset iteration is measured side by side")
+    harness.options(parser, "rounds", "ref", helps={"rounds": "rounds of the collection variants (median)",
+                                                    "ref": "an earlier commit whose whole cpu-preset iteration is "
+                                                           "measured side by side"})
     parser.add_argument("--ref-rounds", type=int, default=2, help="iterations per checkout with --ref (median)")
     parser.add_argument("--physics", help="also measure the cpu-preset iteration with this physics setting "
                         "(ITERATIONSxFRAME_SKIP, e.g. 20x5) against the default, alternately (--ref-rounds each)")

@@ -71,8 +71,7 @@ def main(argv=None) -> int:
     parser.add_argument("--train-clouds", type=int, default=1000, help="clouds in the fixed training set")
     parser.add_argument("--samples-per-object", type=int, default=datasets.DEFAULT_DAM_SAMPLES,
                         help="DAM size the minutes per task are given for")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads")
-    harness.options(parser, "json")
+    harness.options(parser, "json", threads=2)
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not a measurement
         args.tasks, args.objects, args.clouds, args.train_clouds = "laptop", 1, 5, 32

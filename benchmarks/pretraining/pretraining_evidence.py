@@ -243,7 +243,7 @@ def untrained_knn(data_root: Path, seed: int) -> float:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, default=Path("runs/pretrain"), help="datasets and runs")
-    parser.add_argument("--results", type=Path, default=benchmark_results(__file__))
+    harness.options(parser, results=benchmark_results(__file__))
     sub = parser.add_subparsers(dest="step", required=True)
     seg = sub.add_parser("seg", help="DAM data + segmentation pretraining + mIoU per task")
     harness.options(seg, "tasks")

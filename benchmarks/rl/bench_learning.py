@@ -22,8 +22,9 @@ from pathlib import Path
 
 from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl import ppo
-from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, write_json
+from dexart_lite.utils import benchmark_results, fast_mode, parse_overrides, provenance, sibling_script, write_json
 
+harness = sibling_script(__file__, "_harness")
 RESULTS = benchmark_results(__file__)
 # DexArt Table 2, no pre-training, success seen / unseen (mean over 3 seeds)
 PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (0.81, 0.41), "toilet": (0.71, 0.46)}
@@ -37,7 +38,7 @@ def main(argv=None) -> dict:
                          helps={"init_log_std": "initial log std of the actions (None: the preset's; DexArt: 0)"})
     parser.add_argument("--preset", default="faithful", choices=list(ppo.PRESETS))
     parser.add_argument("--out", type=Path, help="training folder (default runs/learning_<task>)")
-    parser.add_argument("--results", type=Path, default=RESULTS, help="where the JSON and PNG go")
+    harness.options(parser, results=RESULTS)
     parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json (needed "
                         "by --set)")
     args = parser.parse_args(argv)

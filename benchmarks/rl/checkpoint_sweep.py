@@ -149,9 +149,11 @@ def main(argv=None) -> dict:
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of every evaluation (1000: held out)"})
     parser.add_argument("--summary-from", type=int, default=0, help="summarise the checkpoints of at least this "
                         "many RL frames (the earlier ones are still evaluated and drawn)")
-    parser.add_argument("--cache", type=Path, default=Path("runs/checkpoint_sweep"), help="where git checkpoints go")
-    parser.add_argument("--json", type=Path, required=True)
+    harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), helps={"json": "write the results here "
+                                                                                         "(required)"})
     args = parser.parse_args(argv)
+    if args.json is None:
+        parser.error("--json is required")
     if args.episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
     starts = dict(args.start)

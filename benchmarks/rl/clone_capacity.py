@@ -23,7 +23,6 @@ import argparse
 import functools
 import time
 from dataclasses import asdict, replace
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -69,8 +68,7 @@ def clone(task: str, obs: str, arch: str, seed: int, demo_episodes: int, demo_no
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    harness.options(parser, "task")
-    parser.add_argument("--obs", default="state", choices=["state", "cloud"])
+    harness.options(parser, "task", "obs")
     parser.add_argument("--arch", nargs="+", default=list(ARCHS), choices=list(ARCHS))
     harness.options(parser, seeds=[0, 1])
     parser.add_argument("--demo-episodes", type=int, default=4, help="per training object")

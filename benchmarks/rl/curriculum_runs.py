@@ -510,8 +510,7 @@ def _config(folder: Path) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    harness.options(parser, "task")
-    parser.add_argument("--obs", default="state", choices=["state", "cloud"])
+    harness.options(parser, "task", "obs")
     parser.add_argument("--recipe", default="reverse_bc", choices=list(RECIPES))
     harness.options(parser, "jobs", seeds=[0, 1], frames=1_000_000, runs=Path("runs/curriculum"),
                     helps={"frames": "online frames per seed (at most)", "jobs": "seeds trained at once"})
@@ -521,7 +520,7 @@ def main(argv=None) -> dict:
                                            "as every committed run did; frames_per_batch 4000 must be a multiple)",
                                 "device": "where each seed's networks train (PPO): cpu, cuda or auto"})
     harness.options(parser, "eval_episodes", "note")
-    parser.add_argument("--results", type=Path, default=RESULTS)
+    harness.options(parser, results=RESULTS)
     parser.add_argument("--students-only", action="store_true",
                         help="a student recipe's distillation step alone (no RL), to <task>_cloud_student.json")
     parser.add_argument("--committed", type=Path, default=None, help="where unfinished runs are parked between "

@@ -68,8 +68,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--windows", nargs="+", type=int, default=[0, 300_000, 600_000, 1_000_000],
                         help="frame boundaries of the table's windows")
     parser.add_argument("--smooth", type=int, default=5, help="batches in the plotted running mean")
-    parser.add_argument("--png", type=Path)
-    harness.options(parser, "json")
+    harness.options(parser, "png", "json")
     args = parser.parse_args(argv)
     if len(args.windows) < 2 or sorted(args.windows) != args.windows:
         raise ValueError(f"--windows needs at least two increasing frame counts, got {args.windows}")

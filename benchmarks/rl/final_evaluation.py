@@ -78,7 +78,7 @@ def main(argv=None) -> dict:
                         "started from, counted in the cell's demonstration steps (not evaluated)")
     parser.add_argument("--episodes", type=int, default=EPISODES_PER_OBJECT, help="per seen and unseen object")
     harness.options(parser, "jobs")
-    parser.add_argument("--cache", type=Path, default=Path("runs/final_evaluation"), help="where git checkpoints go")
+    harness.options(parser, cache=Path("runs/final_evaluation"))
     harness.options(parser, "json", helps={"json": f"default {RESULTS.name}/<task>_<column>.json"})
     args = parser.parse_args(argv)
     if (args.column == "expert") == bool(args.checkpoints) or (args.column == "expert") == bool(args.source):

@@ -60,7 +60,7 @@ def pooled(rows: list[dict]) -> dict:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, task="faucet")
-    parser.add_argument("--results", type=Path, default=RESULTS, help="folder of the finetune_<task>*.json files")
+    harness.options(parser, results=RESULTS, helps={"results": "folder of the finetune_<task>*.json files"})
     harness.options(parser, "json", helps={"json": "write the summary here"})
     args = parser.parse_args(argv)
     rows = runs(args.task, args.results)

@@ -115,9 +115,11 @@ def main(argv=None) -> dict:
                         "rl.evaluate.VALIDATION_SEEDS)")
     parser.add_argument("--episodes", type=int, default=10, help="held-out episodes per seen and unseen object")
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of the held-out evaluation"})
-    parser.add_argument("--cache", type=Path, default=Path("runs/checkpoint_sweep"), help="where git checkpoints go")
-    parser.add_argument("--json", type=Path, required=True)
+    harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), helps={"json": "write the results here "
+                                                                                         "(required)"})
     args = parser.parse_args(argv)
+    if args.json is None:
+        parser.error("--json is required")
     for name in ("select_episodes", "episodes"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")

@@ -127,8 +127,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--noise-on", default="all", choices=list(NOISE_PARTS),
                         help="the action part the noise perturbs: all, arm (palm twist) or hand (joint targets)")
     parser.add_argument("--demos", type=int, default=11, help="demonstrations (one per seen object by default)")
-    harness.options(parser, "seed", "jobs", "json", helps={"seed": "the demonstrations' solve seed"})
-    parser.add_argument("--png", type=Path)
+    harness.options(parser, "seed", "jobs", "json", "png", helps={"seed": "the demonstrations' solve seed"})
     args = parser.parse_args(argv)
     if min(args.h) < 0:
         raise ValueError(f"--h must be >= 0, got {args.h}")

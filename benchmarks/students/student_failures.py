@@ -115,8 +115,10 @@ def main(argv=None) -> dict:
     harness.options(parser, "splits")
     parser.add_argument("--sigmas", type=float, nargs="+", default=[0.0, 0.1, 0.2])
     harness.options(parser, episodes_per_object=2, seed=200, helps={"seed": "evaluation seeds (not the training ones)"})
-    parser.add_argument("--json", type=Path, required=True)
+    harness.options(parser, "json", helps={"json": "write the results here (required)"})
     args = parser.parse_args(argv)
+    if args.json is None:
+        parser.error("--json is required")
     max_steps = 12 if fast_mode() else None
     rows = []
     for run in args.runs:

@@ -54,8 +54,8 @@ def test_unknown_run_sets_and_missing_checkpoints_are_named(tmp_path, load_bench
         bench.run_sets(["laptop_state_bc"], tmp_path)
     with pytest.raises(FileNotFoundError, match="RL checkpoint not found.*laptop_cloud_student_anchored_s0"):
         bench.checkpoints(run_set, tmp_path / "runs")
-    with pytest.raises(ValueError, match="--episodes must be >= 1"):
-        bench.main(["--episodes", "0"])
+    with pytest.raises(ValueError, match="--eval-episodes must be >= 1"):
+        bench.main(["--eval-episodes", "0"])
 
 
 def test_re_evaluating_one_run_set_keeps_the_others_with_their_provenance(load_benchmark):
@@ -347,7 +347,7 @@ def test_the_checkpoint_chosen_on_seen_validation_episodes_is_the_one_evaluated_
 
     monkeypatch.setattr(bench, "evaluate_many", fake_evaluate_many)
     out = bench.main(["--start", f"s0={files['sa']}", f"s1={files['sb']}", "--select-seed", "100",
-                      "--select-episodes", "4", "--seed", "7919", "--episodes", "10",
+                      "--select-episodes", "4", "--seed", "7919", "--eval-episodes", "10",
                       "--json", str(tmp_path / "picked.json"), "--",
                       *(f"s0={files[n]}" for n in ("a2", "a0", "a1")), *(f"s1={files[n]}" for n in ("b0", "b1"))])
     (chosen, k, seed), (held, k_held, seed_held) = calls

@@ -74,7 +74,7 @@ def test_zoo_build_ships_a_checkpoint_without_its_optimizer_and_writes_the_field
     source = ppo.save(learner, cfg, tmp_path / "run.pt", frames=123, batches=0, history=[])
     assert "optimizer" in load_checkpoint(source)
     bench = load_benchmark("zoo_build")
-    result = bench.main(["--policy", f"laptop={source}", "--episodes", "1", "--zoo", str(tmp_path / "zoo"),
+    result = bench.main(["--policy", f"laptop={source}", "--eval-episodes", "1", "--zoo", str(tmp_path / "zoo"),
                          "--json", str(tmp_path / "zoo.json")])  # fast mode (conftest)
     entry = result["policies"]["laptop"]
     shipped = load_checkpoint(tmp_path / "zoo" / "laptop.pt")
@@ -86,8 +86,8 @@ def test_zoo_build_ships_a_checkpoint_without_its_optimizer_and_writes_the_field
     # a source that only collected finished runs (bench_distill --collect) is given the command that trained it
     (tmp_path / "source.json").write_text(json.dumps({"command": "bench_distill.py --collect runs/a", "machine": {}}))
     entry = bench.main(["--policy", f"laptop={source}", "--source", f"laptop={tmp_path / 'source.json'}",
-                        "--training-command", "laptop=bench_distill.py --task laptop --set threads=1", "--episodes",
-                        "1", "--zoo", str(tmp_path / "zoo"), "--json", str(tmp_path / "zoo.json")])["policies"]["laptop"]
+                        "--training-command", "laptop=bench_distill.py --task laptop --set threads=1",
+                        "--eval-episodes", "1", "--zoo", str(tmp_path / "zoo"), "--json", str(tmp_path / "zoo.json")])["policies"]["laptop"]
     assert entry["training_command"] == "bench_distill.py --task laptop --set threads=1"
     with pytest.raises(ValueError, match="not laptop|is a laptop policy, not faucet"):
         bench.main(["--policy", f"faucet={source}", "--zoo", str(tmp_path / "zoo"), "--json", str(tmp_path / "z.json")])

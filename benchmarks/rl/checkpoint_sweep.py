@@ -14,7 +14,7 @@ Each positional argument is ``SERIES=CHECKPOINT``: a series label (a seed, say) 
 with the held-out evaluations committed beside it that measured it, which are read back instead of run again).
 ``--start`` names the checkpoint a series started from (its student), drawn at 0 RL frames; the others sit at their
 checkpoint's frames.
-Every checkpoint is evaluated as ``paired_eval.py`` does: deterministic actions from the true reset, ``--episodes``
+Every checkpoint is evaluated as ``paired_eval.py`` does: deterministic actions from the true reset, ``--eval-episodes``
 per seen and unseen object at env seed ``--seed`` (1000, held out), cached next to the checkpoint
 (``rl.evaluate.evaluate_many``), so each checkpoint needs a folder of its own.
 
@@ -145,7 +145,7 @@ def main(argv=None) -> dict:
     parser.add_argument("checkpoints", nargs="+", type=parse_spec, help="SERIES=CHECKPOINT (a file or REV:path)")
     parser.add_argument("--start", nargs="*", type=parse_spec, default=[], help="SERIES=CHECKPOINT a series started "
                         "from (drawn at 0 RL frames)")
-    parser.add_argument("--episodes", type=int, default=10, help="per seen and unseen object")
+    harness.options(parser, eval_episodes=10)
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of every evaluation (1000: held out)"})
     parser.add_argument("--summary-from", type=int, default=0, help="summarise the checkpoints of at least this "
                         "many RL frames (the earlier ones are still evaluated and drawn)")
@@ -154,14 +154,14 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     if args.json is None:
         parser.error("--json is required")
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.eval_episodes < 1:
+        raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
     starts = dict(args.start)
     unknown = sorted(set(starts) - {label for label, _ in args.checkpoints})
     if unknown:
         raise ValueError(f"--start for series without checkpoints: {', '.join(unknown)}")
     files = {spec: resolve(spec, args.cache) for spec in [*starts.values(), *(c for _, c in args.checkpoints)]}
-    results = evaluate_many([(str(f), s) for f in files.values() for s in SPLITS], args.episodes, args.seed, args.jobs)
+    results = evaluate_many([(str(f), s) for f in files.values() for s in SPLITS], args.eval_episodes, args.seed, args.jobs)
 
     def point(spec: str, frames: int | None = None) -> dict:  # frames: the checkpoint's own, kept in its evaluation
         evaluated = {s: results[(str(files[spec]), s)] for s in SPLITS}
@@ -174,7 +174,7 @@ def main(argv=None) -> dict:
         s["checkpoints"].append(point(spec))
     for s in series.values():
         s["checkpoints"].sort(key=lambda c: c["frames"])
-    out = {"episodes_per_object": args.episodes, "eval_seed": args.seed, "series": series,
+    out = {"episodes_per_object": args.eval_episodes, "eval_seed": args.seed, "series": series,
            "summary": summarise(series, args.summary_from), **provenance(__file__, argv), "jobs": args.jobs}
     write_json(args.json, out)
     plot(series, args.json.with_suffix(".png"))

@@ -76,7 +76,7 @@ def main(argv=None) -> dict:
                         "it (`python benchmarks/rl/curriculum_table.py --choices` prints each task's); not for the expert")
     parser.add_argument("--students", nargs="*", default=[], help="SEED=CHECKPOINT: the students the RL checkpoints "
                         "started from, counted in the cell's demonstration steps (not evaluated)")
-    parser.add_argument("--episodes", type=int, default=EPISODES_PER_OBJECT, help="per seen and unseen object")
+    harness.options(parser, eval_episodes=EPISODES_PER_OBJECT)
     harness.options(parser, "jobs")
     harness.options(parser, cache=Path("runs/final_evaluation"))
     harness.options(parser, "json", helps={"json": f"default {RESULTS.name}/<task>_<column>.json"})
@@ -84,9 +84,9 @@ def main(argv=None) -> dict:
     if (args.column == "expert") == bool(args.checkpoints) or (args.column == "expert") == bool(args.source):
         raise ValueError("--checkpoints and --source are needed for every column but the expert's, and only there")
     path = args.json or RESULTS / f"{args.task}_{args.column}.json"
-    out = {"task": args.task, "column": args.column, "source": args.source, "env_seed": TEST_SEEDS[0], "episodes_per_object": args.episodes}
+    out = {"task": args.task, "column": args.column, "source": args.source, "env_seed": TEST_SEEDS[0], "episodes_per_object": args.eval_episodes}
     if args.column == "expert":
-        out.update(expert_cell(args.task, args.episodes))
+        out.update(expert_cell(args.task, args.eval_episodes))
     else:
         resolve = sibling_script(__file__, "checkpoint_sweep").resolve
         specs = dict(parse(text) for text in args.checkpoints)
@@ -95,7 +95,7 @@ def main(argv=None) -> dict:
         wrong = sorted({p["config"]["task"] for p in payloads.values()} - {args.task})
         if wrong:
             raise ValueError(f"--task {args.task} but the checkpoints are of {', '.join(wrong)}")
-        cell = protocol_evaluation(files, "test", args.jobs, args.episodes)
+        cell = protocol_evaluation(files, "test", args.jobs, args.eval_episodes)
         students = {seed: load_checkpoint(resolve(spec, args.cache)) for seed, spec in map(parse, args.students)}
         out.update({split: cell[split] for split in SPLITS}, checkpoints=specs,
                    students={seed: spec for seed, spec in map(parse, args.students)},

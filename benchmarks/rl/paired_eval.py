@@ -1,14 +1,14 @@
 """Each point-cloud RL run against the student it started from, evaluated again side by side with more episodes.
 
     python benchmarks/rl/paired_eval.py --jobs 2                    # every RL run set with a student, 10 eps/object
-    python benchmarks/rl/paired_eval.py --run-sets laptop_cloud_student_anchored --episodes 20
+    python benchmarks/rl/paired_eval.py --run-sets laptop_cloud_student_anchored --eval-episodes 20
 
 Why: the runs' own evaluations (``curriculum_runs.py``) use 3 episodes per object, a standard error of 0.07-0.11 per
 seed and split, as large as any change RL made. Here, for every committed RL run set that starts from a distilled
 student (``benchmarks/results/rl/curriculum/<task>_cloud_<recipe>.json`` with a ``student`` entry) and each of its
 seeds, the RL policy (``runs/curriculum/<task>_cloud_<recipe>_s<seed>/checkpoint.pt``) and the student it started
 from (the checkpoint its config's ``init_from`` names) are evaluated as ``dexart-lite eval`` does: deterministic
-actions from the true reset, ``--episodes`` per seen and unseen object, both at env seed 1000, a held-out seed (the
+actions from the true reset, ``--eval-episodes`` per seen and unseen object, both at env seed 1000, a held-out seed (the
 runs' own evaluations, which chose recipes and zoo entries, use 100). Each evaluation is cached next to its checkpoint
 (``heldout_<split>_e<N>_seed<S>.json``, through ``rl.evaluate.evaluate_many``, as ``bench_finetune.py
 --heldout-episodes`` does) and read back by a later call. The checkpoints are not in git (``runs/`` is untracked):
@@ -133,20 +133,20 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run-sets", nargs="+", default=None, help="JSON stems under benchmarks/results/rl/"
                         "curriculum (default: every RL run set that starts from a student)")
-    parser.add_argument("--episodes", type=int, default=10, help="per seen and unseen object")
+    harness.options(parser, eval_episodes=10)
     harness.options(parser, "jobs", seed=1000, runs=Path("runs/curriculum"),
                     helps={"seed": "env seed of every evaluation: 1000, the held-out seed of bench_finetune.py, not "
                                    "the 100 of the runs' own evaluations that chose settings"})
     parser.add_argument("--out", type=Path, default=RESULTS / "paired_eval.json")
     args = parser.parse_args(argv)
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.eval_episodes < 1:
+        raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
     if fast_mode() and args.out == RESULTS / "paired_eval.json":  # never overwrite the evidence with a smoke run
         raise ValueError("fast mode writes smoke results: pass --out elsewhere")
     pairs = [p for run_set in run_sets(args.run_sets) for p in checkpoints(run_set, args.runs)]
     # a student that starts several run sets (one per recipe) is evaluated once; cached next to each checkpoint
     work = [(str(p[who]), split) for p in pairs for who in ("student", "rl") for split in SPLITS]
-    results = evaluate_many(work, args.episodes, args.seed, args.jobs)
+    results = evaluate_many(work, args.eval_episodes, args.seed, args.jobs)
     rows = []
     for p in pairs:
         stats = {who: {s: split_stats(results[(str(p[who]), s)]) for s in SPLITS} for who in ("student", "rl")}
@@ -159,9 +159,9 @@ def main(argv=None) -> dict:
     for row in rows:
         row.update(command=meta["command"], machine=meta["machine"])
     if args.run_sets and args.out.is_file():
-        rows = merge_rows(json.loads(args.out.read_text()), rows, args.episodes, args.seed)
+        rows = merge_rows(json.loads(args.out.read_text()), rows, args.eval_episodes, args.seed)
     summary = summarise(rows)
-    out = {"episodes_per_object": args.episodes, "eval_seed": args.seed, "runs": rows, "summary": summary,
+    out = {"episodes_per_object": args.eval_episodes, "eval_seed": args.seed, "runs": rows, "summary": summary,
            **meta, "jobs": args.jobs}
     write_json(args.out, out)
     plot(summary, rows, args.out.with_suffix(".png"))

@@ -22,7 +22,7 @@ The protocol, in order:
 3. Per series (a seed's run) the candidate with the highest validation success is picked; a tie goes to the one
    trained longer.
 4. Only the pick, the series' last candidate (the plain "stop at the end" rule) and its start are evaluated as
-   ``paired_eval.py`` does: ``--episodes`` per seen and unseen object at env seed ``--seed`` (1000, held out).
+   ``paired_eval.py`` does: ``--eval-episodes`` per seen and unseen object at env seed ``--seed`` (1000, held out).
 
 Unseen objects play no part in the choice, and the held-out seen episodes start from other initial states (another
 seed of the env's RNG) than the ones chosen on, so the pick's held-out figures are what a user who stops this way
@@ -113,7 +113,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--select-episodes", type=int, default=5, help="validation episodes per seen object")
     parser.add_argument("--select-seed", type=int, default=100, help="env seed of the validation episodes (one of "
                         "rl.evaluate.VALIDATION_SEEDS)")
-    parser.add_argument("--episodes", type=int, default=10, help="held-out episodes per seen and unseen object")
+    harness.options(parser, eval_episodes=10, helps={"eval_episodes": "held-out episodes per seen and unseen object"})
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of the held-out evaluation"})
     harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), helps={"json": "write the results here "
                                                                                          "(required)"})
@@ -147,14 +147,14 @@ def main(argv=None) -> dict:
         s["picked"], s["last"] = dict(pick(s["candidates"])), dict(s["candidates"][-1])
 
     held = [s[which]["checkpoint"] for s in series.values() for which in ("start", "picked", "last")]
-    heldout = evaluate_many([(str(files[c]), split) for c in held for split in SPLITS], args.episodes, args.seed,
+    heldout = evaluate_many([(str(files[c]), split) for c in held for split in SPLITS], args.eval_episodes, args.seed,
                             args.jobs)
     for s in series.values():
         for which in ("start", "picked", "last"):
             s[which].update({split: split_stats(heldout[(str(files[s[which]["checkpoint"]]), split)])
                              for split in SPLITS})
     out = {"protocol": {"select_split": "seen", "select_episodes_per_object": args.select_episodes,
-                        "select_seed": args.select_seed, "episodes_per_object": args.episodes,
+                        "select_seed": args.select_seed, "episodes_per_object": args.eval_episodes,
                         "eval_seed": args.seed},
            "series": series, "summary": summarise(series), **provenance(__file__, argv), "jobs": args.jobs}
     write_json(args.json, out)

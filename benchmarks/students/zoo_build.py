@@ -5,7 +5,7 @@
 
 For each ``TASK=CHECKPOINT``: the weights, config, sizes and history of the checkpoint (not its optimizer) are
 written to ``dexart_lite/zoo/<task>.pt`` (at most 2 MB), loaded back strictly and evaluated as ``dexart-lite eval
---ckpt zoo:<task>`` does (deterministic actions from the true reset, ``--episodes`` per seen and unseen object,
+--ckpt zoo:<task>`` does (deterministic actions from the true reset, ``--eval-episodes`` per seen and unseen object,
 env seed 100). The measurements go to ``benchmarks/results/students/zoo.json`` (per task: file, bytes, trainer, frames,
 seed, the training command (from ``--source``, the results JSON the run belongs to, or ``--training-command``), the
 machine, ``--note``, seen_success, unseen_success, eval_episodes_per_object, eval_seed, mean_max_stage; the command
@@ -76,7 +76,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--training-command", nargs="*", default=[], metavar="TASK=COMMAND",
                         help="the command that trained a policy, where its --source records only the step that "
                              "collected finished runs into it (bench_distill.py --collect)")
-    parser.add_argument("--episodes", type=int, default=3, help="evaluation episodes per seen and unseen object")
+    harness.options(parser, eval_episodes=3)
     harness.options(parser, seed=100, helps={"seed": "evaluation env seed (as dexart-lite eval)"})
     parser.add_argument("--zoo", type=Path, default=zoo.FOLDER, help="where the checkpoints and manifest go")
     harness.options(parser, "note", json=RESULTS,
@@ -93,7 +93,7 @@ def main(argv=None) -> dict:
         training = json.loads(Path(sources[task]).read_text()) if task in sources else None
         if task in commands:
             training = {**(training or {}), "command": commands[task]}
-        entries[task] = measure(task, path, args.episodes, args.seed, training)
+        entries[task] = measure(task, path, args.eval_episodes, args.seed, training)
         if args.note:
             entries[task]["note"] = args.note
         print(f"zoo:{task}: {entries[task]['bytes'] / 1e6:.2f} MB, seen {entries[task]['seen_success']:.2f}, "

@@ -57,6 +57,10 @@ class Options:
     cache: Path = field(default=Path("runs/checkpoints_from_git"),
                         metadata={"help": "where checkpoints named REV:path are extracted from git"})
     threads: int = field(default=0, metadata={"help": "torch threads (0: all cores)"})
+    sigmas: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.2],
+                                metadata={"help": "std of the Gaussian noise on the executed actions, one run each"})
+    expert: str | None = field(default=None, metadata={"help": "another expert of the task than its own, by class "
+                                                                "name (dexart_lite.experts.TASK_EXPERTS)"})
     # timings (benchmarks/perf): each measurement repeated, interleaved with the others, its median reported
     steps: int = field(default=400, metadata={"help": "env steps per timed measurement"})
     resets: int = field(default=400, metadata={"help": "env resets per timed measurement"})

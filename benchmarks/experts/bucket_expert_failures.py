@@ -91,9 +91,7 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigma", type=float, default=0.1, help="action noise std")
     harness.options(parser, "splits", "episodes_per_object", "seed")
-    parser.add_argument("--expert", help="another expert of the task than its own, by class name "
-                        "(dexart_lite.experts.TASK_EXPERTS)")
-    harness.options(parser, "json")
+    harness.options(parser, "expert", "json")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence
         args.episodes_per_object = 1

@@ -45,9 +45,7 @@ def main(argv=None) -> dict:
                     helps={"seeds": "one solve per seed (its own reset seeds and noise draws); the table adds their "
                                     "mean", "json": "write the results here (and the PNG next to it); a run stopped "
                                     "half-way continues from it"})
-    parser.add_argument("--sigmas", type=float, nargs="+", default=list(SIGMAS), help="noise std per action dim")
-    parser.add_argument("--expert", help="another expert of the task than its own, by class name "
-                        "(dexart_lite.experts.TASK_EXPERTS)")
+    harness.options(parser, "expert", sigmas=list(SIGMAS))
     parser.add_argument("--noise-part", default="all", choices=list(NOISE_PARTS),
                         help="the action dimensions perturbed: all, arm (the palm twist) or hand (the joint targets)")
     harness.options(parser, "json")

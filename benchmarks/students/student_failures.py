@@ -113,7 +113,7 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=Path, nargs="+", required=True, help="distill folders (checkpoint.pt)")
     harness.options(parser, "splits")
-    parser.add_argument("--sigmas", type=float, nargs="+", default=[0.0, 0.1, 0.2])
+    harness.options(parser, "sigmas")
     harness.options(parser, episodes_per_object=2, seed=200, helps={"seed": "evaluation seeds (not the training ones)"})
     harness.options(parser, "json", helps={"json": "write the results here (required)"})
     args = parser.parse_args(argv)

@@ -94,10 +94,12 @@ RECIPES: dict[str, dict[str, Recipe]] = {
         {**at_std({**FLOOR, **REVERSE, "curriculum_demos": 17}, 0.05), "frames": 964_000},
         "student_successonly_anchored_floor_reverse_d17_std05")},
     "bucket": {"experts": Recipe(
-        "students of the overhand expert (thumb-first lift); the laptop's PPO (flat bonus, 4x batches, anchored with a "
-        "floor) at exploration std 0.03, since std-0.1 collections lift ~0.05 of the buckets",
-        {}, {**at_std({**FLOOR, **FLAT, **BIG_BATCH}, 0.03), "frames": 2_000_000},
-        "student_thumbfirst_anchored_floor_flat_b16k_std03")},
+        "students of the overhand expert (thumb-first lift) from twice the demonstrations that keep only their "
+        "successful DAgger episodes; the laptop's PPO (flat bonus, 4x batches, anchored with a floor) at exploration "
+        "std 0.03, since std-0.1 collections lift ~0.05 of the buckets",
+        {**TWICE_THE_EPISODES, "drop_failed": True},
+        {**at_std({**FLOOR, **FLAT, **BIG_BATCH}, 0.03), "frames": 2_000_000},
+        "student_thumbfirst_successonly2x_anchored_floor_flat_b16k_std03")},
 }
 
 

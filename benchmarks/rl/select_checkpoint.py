@@ -120,7 +120,7 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     if args.json is None:
         parser.error("--json is required")
-    for name in ("select_episodes", "episodes"):
+    for name in ("select_episodes", "eval_episodes"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if args.select_seed == args.seed:

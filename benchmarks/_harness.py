@@ -69,11 +69,13 @@ class Options:
                                                            "worktree)"})
 
 
-def options(parser, *names: str, helps: dict | None = None, **defaults) -> None:
+def options(parser, *names: str, helps: dict | None = None, required: tuple[str, ...] = (), **defaults) -> None:
     """Add the ``Options`` flags ``names`` (and those given a default here) to ``parser``:
     ``options(parser, "task", "jobs", seeds=[0], json=RESULTS / "x.json")`` adds ``--task``, ``--jobs``,
-    ``--seeds`` (default 0) and ``--json``. ``helps``: a script's own help line for a flag."""
-    add_config_arguments(parser, Options, names=[*names, *defaults], overrides=False, defaults=defaults, helps=helps)
+    ``--seeds`` (default 0) and ``--json``. ``helps``: a script's own help line for a flag; ``required``: the flags
+    the script cannot run without (argparse then refuses a command line that lacks one)."""
+    add_config_arguments(parser, Options, names=[*names, *defaults], overrides=False, defaults=defaults, helps=helps,
+                         required=required)
 
 
 def run_grid(job, grid: list[dict], *, jobs: int = 1, path: Path | None = None, summarise=None,

@@ -38,13 +38,13 @@ USER_ERRORS = (ValueError, FileNotFoundError, KeyError, RuntimeError, OSError)
 
 def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, given_only: bool = False,
                          default_label: str = "default", overrides: bool = True, defaults: dict | None = None,
-                         helps: dict | None = None) -> None:
+                         helps: dict | None = None, required: tuple[str, ...] = ()) -> None:
     """One ``--flag-name`` per field of the dataclass ``config_cls`` (or of its fields in ``names``), typed from
     its annotation (``int | None`` -> int; ``list[int]`` -> one or more ints), with the field's
     ``metadata["help"]`` (or ``helps[name]``), its ``metadata["choices"]`` and "(default_label: value)";
     booleans get ``--flag`` / ``--no-flag``. ``defaults``: other defaults than the dataclass's, by field name.
     ``given_only``: every flag defaults to None, so that the caller can tell the flags given from the rest (a
-    preset, or another config's defaults, then fills those in).
+    preset, or another config's defaults, then fills those in). ``required``: fields whose flag must be given.
     ``overrides``: also ``--set FIELD=VALUE ...``, the spelling the benchmark scripts and ``study`` take (a
     benchmark's ``--set`` can be pasted into a command), applied after the flags by ``config_from_args``."""
     if overrides:
@@ -64,17 +64,18 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
         help_text = helps.get(f.name, f.metadata.get("help", "")) + f" ({default_label}: {_shown(value)})"
         default = None if given_only else value
         choices = f.metadata.get("choices")
+        need = {"required": True} if f.name in required else {}
         if hints[f.name] is bool:
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=default, help=help_text)
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=default, help=help_text, **need)
             continue
         hint = hints[f.name]
         kinds = ([k for k in typing.get_args(hint) if k is not type(None)]
                  if typing.get_origin(hint) in (typing.Union, types.UnionType) else [hint])
         if typing.get_origin(kinds[0]) in (list, tuple):  # list[int], tuple[str, ...]: one or more values
             parser.add_argument(flag, type=typing.get_args(kinds[0])[0], nargs="+", default=default, help=help_text,
-                                choices=choices)
+                                choices=choices, **need)
         else:
-            parser.add_argument(flag, type=kinds[0], default=default, help=help_text, choices=choices)
+            parser.add_argument(flag, type=kinds[0], default=default, help=help_text, choices=choices, **need)
 
 
 def _shown(value) -> str:

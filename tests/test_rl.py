@@ -174,6 +174,19 @@ def test_every_config_command_takes_set_after_its_flags():
         cli.config_from_args(DistillConfig, parser.parse_args(["--set", "roundz=5"]))
 
 
+def test_a_required_config_flag_is_refused_when_missing_and_read_when_given(capsys):
+    """``add_config_arguments(..., required=...)``: argparse refuses a command line without the flag (exit 2, the
+    flag named), and a given one is typed like its field."""
+    from dexart_lite.imitation.distill import DistillConfig
+
+    parser = cli.argparse.ArgumentParser(prog="x")
+    cli.add_config_arguments(parser, DistillConfig, names=["task", "rounds"], overrides=False, required=("rounds",))
+    with pytest.raises(SystemExit) as stop:
+        parser.parse_args(["--task", "bucket"])
+    assert stop.value.code == 2 and "the following arguments are required: --rounds" in capsys.readouterr().err
+    assert parser.parse_args(["--rounds", "3"]).rounds == 3 and parser.parse_args(["--rounds", "3"]).task == "laptop"
+
+
 @pytest.mark.parametrize("overrides, message", [
     ({"encoder": "huge"}, "valid choices: small, medium, large"),
     ({"backend": "mpi"}, "valid choices: process, distributed, ray"),

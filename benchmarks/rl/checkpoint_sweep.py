@@ -149,11 +149,8 @@ def main(argv=None) -> dict:
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of every evaluation (1000: held out)"})
     parser.add_argument("--summary-from", type=int, default=0, help="summarise the checkpoints of at least this "
                         "many RL frames (the earlier ones are still evaluated and drawn)")
-    harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), helps={"json": "write the results here "
-                                                                                         "(required)"})
+    harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), required=("json",))
     args = parser.parse_args(argv)
-    if args.json is None:
-        parser.error("--json is required")
     if args.eval_episodes < 1:
         raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
     starts = dict(args.start)
@@ -161,7 +158,8 @@ def main(argv=None) -> dict:
     if unknown:
         raise ValueError(f"--start for series without checkpoints: {', '.join(unknown)}")
     files = {spec: resolve(spec, args.cache) for spec in [*starts.values(), *(c for _, c in args.checkpoints)]}
-    results = evaluate_many([(str(f), s) for f in files.values() for s in SPLITS], args.eval_episodes, args.seed, args.jobs)
+    results = evaluate_many([(str(f), s) for f in files.values() for s in SPLITS], args.eval_episodes, args.seed,
+                            args.jobs)
 
     def point(spec: str, frames: int | None = None) -> dict:  # frames: the checkpoint's own, kept in its evaluation
         evaluated = {s: results[(str(files[spec]), s)] for s in SPLITS}

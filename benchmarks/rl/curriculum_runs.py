@@ -230,8 +230,7 @@ STUDENT_VARIANTS = {"erase": {"point_erase": 0.5, "point_erase_radius": 0.2}, "r
                     "betafloor": {"beta_min": 0.2}, "successonly": {"drop_failed": True}, "thumbfirst": {},
                     "wide": {"drop_failed": True, "split": "seen_wide", "demo_episodes_per_object": 5,
                              "episodes_per_round": 2},
-                    "thumbfirst_successonly2x": {"drop_failed": True, "demo_episodes_per_object": 9,
-                                                 "episodes_per_round": 4}}
+                    "thumbfirst_successonly2x": {**recipes.TWICE_THE_EPISODES, "drop_failed": True}}
 # student_erase_anchored_floor: student_anchored_floor (toilets' recipe on DexArt's reward) from the erase students
 RECIPES["student_erase_anchored_floor"] = {**RECIPES["student_anchored_floor"], "student": "erase"}
 # student_rounds10_anchored_floor_reverse_d17: the toilets' reverse-curriculum recipe from the rounds10 students

@@ -84,7 +84,8 @@ def main(argv=None) -> dict:
     if (args.column == "expert") == bool(args.checkpoints) or (args.column == "expert") == bool(args.source):
         raise ValueError("--checkpoints and --source are needed for every column but the expert's, and only there")
     path = args.json or RESULTS / f"{args.task}_{args.column}.json"
-    out = {"task": args.task, "column": args.column, "source": args.source, "env_seed": TEST_SEEDS[0], "episodes_per_object": args.eval_episodes}
+    out = {"task": args.task, "column": args.column, "source": args.source, "env_seed": TEST_SEEDS[0],
+           "episodes_per_object": args.eval_episodes}
     if args.column == "expert":
         out.update(expert_cell(args.task, args.eval_episodes))
     else:

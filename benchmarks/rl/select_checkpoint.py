@@ -115,11 +115,8 @@ def main(argv=None) -> dict:
                         "rl.evaluate.VALIDATION_SEEDS)")
     harness.options(parser, eval_episodes=10, helps={"eval_episodes": "held-out episodes per seen and unseen object"})
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of the held-out evaluation"})
-    harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), helps={"json": "write the results here "
-                                                                                         "(required)"})
+    harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), required=("json",))
     args = parser.parse_args(argv)
-    if args.json is None:
-        parser.error("--json is required")
     for name in ("select_episodes", "eval_episodes"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")

@@ -115,10 +115,8 @@ def main(argv=None) -> dict:
     harness.options(parser, "splits")
     harness.options(parser, "sigmas")
     harness.options(parser, episodes_per_object=2, seed=200, helps={"seed": "evaluation seeds (not the training ones)"})
-    harness.options(parser, "json", helps={"json": "write the results here (required)"})
+    harness.options(parser, "json", required=("json",))
     args = parser.parse_args(argv)
-    if args.json is None:
-        parser.error("--json is required")
     max_steps = 12 if fast_mode() else None
     rows = []
     for run in args.runs:

@@ -41,12 +41,13 @@ class Options:
                               metadata={"help": "the object splits", "choices": list(SPLITS)})
     seed: int = field(default=0, metadata={"help": "the seed (env resets, noise, network initialisation)"})
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2], metadata={"help": "one run per seed"})
-    jobs: int = field(default=1, metadata={"help": "runs or evaluations at once, one process each (2 on a 2-core "
-                                                   "machine)"})
-    episodes_per_object: int = field(default=3, metadata={"help": "episodes per object"})
-    eval_episodes: int = field(default=3, metadata={"help": "evaluation episodes per seen and unseen object"})
-    frames: int = field(default=100_000, metadata={"help": "environment frames per run"})
-    epochs: int = field(default=10, metadata={"help": "passes over the training data"})
+    jobs: int = field(default=1, metadata={"min": 1, "help": "runs or evaluations at once, one process each (2 on "
+                                                             "a 2-core machine)"})
+    episodes_per_object: int = field(default=3, metadata={"min": 1, "help": "episodes per object"})
+    eval_episodes: int = field(default=3, metadata={"min": 1,
+                                                    "help": "evaluation episodes per seen and unseen object"})
+    frames: int = field(default=100_000, metadata={"min": 1, "help": "environment frames per run"})
+    epochs: int = field(default=10, metadata={"min": 1, "help": "passes over the training data"})
     runs: Path = field(default=Path("runs"), metadata={"help": "parent of the per-run folders"})
     json: Path | None = field(default=None, metadata={"help": "write the results here"})
     note: str | None = field(default=None, metadata={"help": "a line stored in the JSON (e.g. how a run was stopped)"})
@@ -58,13 +59,15 @@ class Options:
                         metadata={"help": "where checkpoints named REV:path are extracted from git"})
     threads: int = field(default=0, metadata={"help": "torch threads (0: all cores)"})
     sigmas: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.2],
-                                metadata={"help": "std of the Gaussian noise on the executed actions, one run each"})
+                                metadata={"min": 0.0,
+                                          "help": "std of the Gaussian noise on the executed actions, one run each"})
     expert: str | None = field(default=None, metadata={"help": "another expert of the task than its own, by class "
                                                                 "name (dexart_lite.experts.TASK_EXPERTS)"})
     # timings (benchmarks/perf): each measurement repeated, interleaved with the others, its median reported
-    steps: int = field(default=400, metadata={"help": "env steps per timed measurement"})
+    steps: int = field(default=400, metadata={"min": 1, "help": "env steps per timed measurement"})
     resets: int = field(default=400, metadata={"help": "env resets per timed measurement"})
-    rounds: int = field(default=3, metadata={"help": "repeats of each timed measurement, interleaved (median)"})
+    rounds: int = field(default=3, metadata={"min": 1,
+                                             "help": "repeats of each timed measurement, interleaved (median)"})
     ref: str | None = field(default=None, metadata={"help": "an earlier commit measured side by side (in a git "
                                                            "worktree)"})
 

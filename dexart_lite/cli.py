@@ -41,7 +41,8 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
                          helps: dict | None = None, required: tuple[str, ...] = ()) -> None:
     """One ``--flag-name`` per field of the dataclass ``config_cls`` (or of its fields in ``names``), typed from
     its annotation (``int | None`` -> int; ``list[int]`` -> one or more ints), with the field's
-    ``metadata["help"]`` (or ``helps[name]``), its ``metadata["choices"]`` and "(default_label: value)";
+    ``metadata["help"]`` (or ``helps[name]``), its ``metadata["choices"]`` and "(default_label: value)"; a
+    ``metadata["min"]`` makes argparse refuse a smaller value, naming the flag;
     booleans get ``--flag`` / ``--no-flag``. ``defaults``: other defaults than the dataclass's, by field name.
     ``given_only``: every flag defaults to None, so that the caller can tell the flags given from the rest (a
     preset, or another config's defaults, then fills those in). ``required``: fields whose flag must be given.
@@ -71,11 +72,24 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
         hint = hints[f.name]
         kinds = ([k for k in typing.get_args(hint) if k is not type(None)]
                  if typing.get_origin(hint) in (typing.Union, types.UnionType) else [hint])
-        if typing.get_origin(kinds[0]) in (list, tuple):  # list[int], tuple[str, ...]: one or more values
-            parser.add_argument(flag, type=typing.get_args(kinds[0])[0], nargs="+", default=default, help=help_text,
-                                choices=choices, **need)
-        else:
-            parser.add_argument(flag, type=kinds[0], default=default, help=help_text, choices=choices, **need)
+        many = typing.get_origin(kinds[0]) in (list, tuple)  # list[int], tuple[str, ...]: one or more values
+        kind = typing.get_args(kinds[0])[0] if many else kinds[0]
+        if "min" in f.metadata:
+            kind = _at_least(kind, f.metadata["min"])
+        parser.add_argument(flag, type=kind, default=default, help=help_text, choices=choices, **need,
+                            **({"nargs": "+"} if many else {}))
+
+
+def _at_least(kind, low):
+    """An argparse ``type`` that converts with ``kind`` and refuses a value below ``low``: argparse then prints
+    "argument --flag: must be >= low, got value" and exits with status 2."""
+    def convert(text: str):
+        value = kind(text)
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+        return value
+    convert.__name__ = kind.__name__  # argparse names the type in "invalid int value: 'x'"
+    return convert
 
 
 def _shown(value) -> str:

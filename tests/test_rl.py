@@ -187,6 +187,28 @@ def test_a_required_config_flag_is_refused_when_missing_and_read_when_given(caps
     assert parser.parse_args(["--rounds", "3"]).rounds == 3 and parser.parse_args(["--rounds", "3"]).task == "laptop"
 
 
+def test_a_config_flag_below_its_minimum_is_refused_by_name(capsys):
+    """A field with ``metadata["min"]`` (the benchmarks' shared ``--jobs``, ``--eval-episodes``, ...): argparse
+    refuses a smaller value, in one line naming the flag, and takes the minimum itself; a list field checks each."""
+    from dataclasses import dataclass, field
+
+    @dataclass
+    class Settings:
+        episodes: int = field(default=3, metadata={"min": 1})
+        sigmas: list[float] = field(default_factory=lambda: [0.1], metadata={"min": 0.0})
+
+    parser = cli.argparse.ArgumentParser(prog="x")
+    cli.add_config_arguments(parser, Settings, overrides=False)
+    for line, message in ((["--episodes", "0"], "argument --episodes: must be >= 1, got 0"),
+                          (["--sigmas", "0.1", "-0.2"], "argument --sigmas: must be >= 0.0, got -0.2"),
+                          (["--episodes", "two"], "argument --episodes: invalid int value: 'two'")):
+        with pytest.raises(SystemExit) as stop:
+            parser.parse_args(line)
+        assert stop.value.code == 2 and message in capsys.readouterr().err
+    args = parser.parse_args(["--episodes", "1", "--sigmas", "0", "0.3"])
+    assert args.episodes == 1 and args.sigmas == [0.0, 0.3]
+
+
 @pytest.mark.parametrize("overrides, message", [
     ({"encoder": "huge"}, "valid choices: small, medium, large"),
     ({"backend": "mpi"}, "valid choices: process, distributed, ray"),

@@ -151,8 +151,6 @@ def main(argv=None) -> dict:
                         "many RL frames (the earlier ones are still evaluated and drawn)")
     harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), required=("json",))
     args = parser.parse_args(argv)
-    if args.eval_episodes < 1:
-        raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
     starts = dict(args.start)
     unknown = sorted(set(starts) - {label for label, _ in args.checkpoints})
     if unknown:

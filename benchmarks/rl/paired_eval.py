@@ -23,7 +23,7 @@ task, recipe, seed, rl_frames, student and rl, each per split {success, se, obje
 split {value, se}; the command and machine that measured it), summary (per run set: task, recipe, seeds, rl_frames,
 and per split the mean student, rl and delta over the seeds with the delta's se), command, machine (of the latest
 call); and ``paired_eval.png`` (the deltas). ``--run-sets`` re-evaluates the run sets named and keeps the other rows
-of an existing ``--out`` as they were measured (same episodes and seed only), so one run set can be measured again
+of an existing ``--json`` as they were measured (same episodes and seed only), so one run set can be measured again
 on a machine that has only its checkpoints.
 """
 
@@ -81,7 +81,7 @@ def merge_rows(previous: dict, rows: list[dict], episodes: int, seed: int) -> li
     comparable)."""
     if (previous["episodes_per_object"], previous["eval_seed"]) != (episodes, seed):
         raise ValueError(f"the existing results use {previous['episodes_per_object']} episodes per object at seed "
-                         f"{previous['eval_seed']}, not {episodes} at {seed}: pass --out elsewhere")
+                         f"{previous['eval_seed']}, not {episodes} at {seed}: pass --json elsewhere")
     kept = harness.rows_not_rerun(previous, rows, lambda r: (r["task"], r["recipe"]), rows_key="runs")
     return sorted(kept + rows, key=lambda r: (r["task"], r["recipe"], r["seed"]))  # the order of a full call
 
@@ -137,12 +137,11 @@ def main(argv=None) -> dict:
     harness.options(parser, "jobs", seed=1000, runs=Path("runs/curriculum"),
                     helps={"seed": "env seed of every evaluation: 1000, the held-out seed of bench_finetune.py, not "
                                    "the 100 of the runs' own evaluations that chose settings"})
-    parser.add_argument("--out", type=Path, default=RESULTS / "paired_eval.json")
+    harness.options(parser, json=RESULTS / "paired_eval.json", helps={"json": "write the results here (and a PNG "
+                                                                          "beside it)"})
     args = parser.parse_args(argv)
-    if args.eval_episodes < 1:
-        raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
-    if fast_mode() and args.out == RESULTS / "paired_eval.json":  # never overwrite the evidence with a smoke run
-        raise ValueError("fast mode writes smoke results: pass --out elsewhere")
+    if fast_mode() and args.json == RESULTS / "paired_eval.json":  # never overwrite the evidence with a smoke run
+        raise ValueError("fast mode writes smoke results: pass --json elsewhere")
     pairs = [p for run_set in run_sets(args.run_sets) for p in checkpoints(run_set, args.runs)]
     # a student that starts several run sets (one per recipe) is evaluated once; cached next to each checkpoint
     work = [(str(p[who]), split) for p in pairs for who in ("student", "rl") for split in SPLITS]
@@ -158,18 +157,18 @@ def main(argv=None) -> dict:
     meta = provenance(__file__, argv)
     for row in rows:
         row.update(command=meta["command"], machine=meta["machine"])
-    if args.run_sets and args.out.is_file():
-        rows = merge_rows(json.loads(args.out.read_text()), rows, args.eval_episodes, args.seed)
+    if args.run_sets and args.json.is_file():
+        rows = merge_rows(json.loads(args.json.read_text()), rows, args.eval_episodes, args.seed)
     summary = summarise(rows)
     out = {"episodes_per_object": args.eval_episodes, "eval_seed": args.seed, "runs": rows, "summary": summary,
            **meta, "jobs": args.jobs}
-    write_json(args.out, out)
-    plot(summary, rows, args.out.with_suffix(".png"))
+    write_json(args.json, out)
+    plot(summary, rows, args.json.with_suffix(".png"))
     for e in summary:
         print(f"{e['task']} {e['recipe']}: " + ", ".join(
             f"{s} {e[s]['student']:.2f} -> {e[s]['rl']:.2f} ({e[s]['delta']:+.2f} ± {e[s]['delta_se']:.2f})"
             for s in SPLITS))
-    print(f"wrote {args.out}")
+    print(f"wrote {args.json}")
     return out
 
 

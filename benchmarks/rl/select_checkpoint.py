@@ -117,9 +117,8 @@ def main(argv=None) -> dict:
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of the held-out evaluation"})
     harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), required=("json",))
     args = parser.parse_args(argv)
-    for name in ("select_episodes", "eval_episodes"):
-        if getattr(args, name) < 1:
-            raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    if args.select_episodes < 1:
+        raise ValueError(f"--select-episodes must be >= 1, got {args.select_episodes}")
     if args.select_seed == args.seed:
         raise ValueError(f"--select-seed must differ from the held-out --seed ({args.seed}): the choice must not "
                          "see the episodes it is reported on")

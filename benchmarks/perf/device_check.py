@@ -24,6 +24,7 @@ from pathlib import Path
 
 import torch
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.imitation.distill import DistillConfig, distill
 from dexart_lite.objects import list_objects
 from dexart_lite.rl import ppo
@@ -62,7 +63,8 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--devices", nargs="+", default=["cpu", "cuda"], choices=["cpu", "cuda"])
     harness.options(parser, "task", frames=24_000, helps={"frames": "PPO frames per device (6 batches of 4,000)"})
-    parser.add_argument("--workers", type=int, default=2, help="PPO collector processes")
+    add_config_arguments(parser, ppo.PPOConfig, names=["workers"], overrides=False, defaults={"workers": 2},
+                         helps={"workers": "PPO collector processes"})
     harness.options(parser, epochs=5, helps={"epochs": "distillation BC epochs per device"})
     parser.add_argument("--demo-episodes", type=int, default=4,
                         help="expert episodes per seen object for BC (the DAgger round runs half as many)")

@@ -21,11 +21,11 @@ from pathlib import Path
 import torch
 
 import dexart_lite
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.models.pointnet import PointNetEncoder
 from dexart_lite.objects import CATEGORIES, list_objects
 from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
-from dexart_lite.registration import TASKS
 from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
 
 harness = sibling_script(__file__, "_harness")
@@ -65,18 +65,18 @@ def epoch_seconds(method: str, data: datasets.PointCloudSet, encoder_size: str =
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", default=",".join(TASKS), help="tasks whose DAM generation is timed")
+    harness.options(parser, "tasks", helps={"tasks": "tasks whose DAM generation is timed"})
     parser.add_argument("--objects", type=int, default=2, help="seen objects per task for the DAM timing")
     parser.add_argument("--clouds", type=int, default=150, help="DAM clouds per object for the timing")
     parser.add_argument("--train-clouds", type=int, default=1000, help="clouds in the fixed training set")
-    parser.add_argument("--samples-per-object", type=int, default=datasets.DEFAULT_DAM_SAMPLES,
-                        help="DAM size the minutes per task are given for")
+    add_config_arguments(parser, datasets.DamConfig, names=["samples_per_object"], overrides=False,
+                         helps={"samples_per_object": "DAM size the minutes per task are given for"})
     harness.options(parser, "json", threads=2)
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not a measurement
-        args.tasks, args.objects, args.clouds, args.train_clouds = "laptop", 1, 5, 32
+        args.tasks, args.objects, args.clouds, args.train_clouds = ["laptop"], 1, 5, 32
     torch.set_num_threads(args.threads)
-    tasks = [t.strip() for t in args.tasks.split(",") if t.strip()]
+    tasks = args.tasks
     results = {**provenance(__file__, argv), "torch": torch.__version__, "dexart_lite": dexart_lite.__version__,
                "threads": args.threads, "dam": {}, "methods": {}}
     with tempfile.TemporaryDirectory() as tmp:

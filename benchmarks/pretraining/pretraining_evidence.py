@@ -247,7 +247,7 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="step", required=True)
     seg = sub.add_parser("seg", help="DAM data + segmentation pretraining + mIoU per task")
     harness.options(seg, "tasks")
-    seg.add_argument("--samples-per-object", type=int, default=datasets.DEFAULT_DAM_SAMPLES)
+    add_config_arguments(seg, datasets.DamConfig, names=["samples_per_object"], overrides=False)
     harness.options(seg, "seed", epochs=10)
     ppo_parser = sub.add_parser("ppo", help="PPO from the segmentation encoder vs. from scratch")
     harness.options(ppo_parser, "task", frames=100_000, seeds=[0], eval_episodes=4)

@@ -27,6 +27,7 @@ from dataclasses import asdict, replace
 import numpy as np
 import torch
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.models.actor_critic import make_actor_critic
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import network_encoder
@@ -71,8 +72,8 @@ def main(argv=None) -> dict:
     harness.options(parser, "task", "obs")
     parser.add_argument("--arch", nargs="+", default=list(ARCHS), choices=list(ARCHS))
     harness.options(parser, seeds=[0, 1])
-    parser.add_argument("--demo-episodes", type=int, default=4, help="per training object")
-    parser.add_argument("--demo-noise", type=float, default=0.1)
+    add_config_arguments(parser, ppo.PPOConfig, names=["demo_episodes", "demo_noise"], overrides=False,
+                         defaults={"demo_episodes": 4, "demo_noise": 0.1})
     harness.options(parser, "eval_episodes", "json", epochs=50,
                     helps={"epochs": "BC epochs after the demos and after each round"})
     parser.add_argument("--rounds", type=int, default=3, help="DAgger rounds")

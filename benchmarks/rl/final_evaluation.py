@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import dexart_lite
 from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import (EPISODES_PER_OBJECT, TEST_SEEDS, by_template, evaluate_expert, over_seeds,
                                      protocol_evaluation, split_stats)
@@ -68,7 +67,7 @@ def expert_cell(task: str, episodes: int) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", required=True, choices=dexart_lite.TASKS)
+    harness.options(parser, "task", required=("task",))
     parser.add_argument("--column", required=True, choices=COLUMNS)
     parser.add_argument("--checkpoints", nargs="*", default=[], help="SEED=CHECKPOINT per training seed (a file or "
                         "REV:path in git history); not for the expert")

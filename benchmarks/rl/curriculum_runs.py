@@ -89,12 +89,10 @@ RECIPES = {
     "reverse_dagger": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, "curriculum": "reverse",
                        "curriculum_demos": 11, "curriculum_step": 5},
     "reverse_guarded": {**GUARDED, "curriculum": "reverse", "curriculum_demos": 11, "curriculum_step": 5},
-    # wide: the dagger recipes on a 256-unit state MLP and 256x256 heads (DexArt's actor is 64 / 64x64): the
+    # wide: the dagger recipe on a 256-unit state MLP and 256x256 heads (DexArt's actor is 64 / 64x64): the
     # clone it starts from opens 0.55 / 0.56 of the laptops instead of 0.05 / 0.08
     # (benchmarks/results/rl/curriculum/clone_capacity_laptop_state.json)
     "dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE},
-    "reverse_dagger_wide": {**GUARDED, "demo_episodes": 4, "dagger_rounds": 3, **WIDE, "curriculum": "reverse",
-                            "curriculum_demos": 11, "curriculum_step": 5},
     # the off-policy learner (rl/sac.py, SACConfig's defaults: 4 noisy expert episodes per object in a buffer of
     # their own, half of every batch; 2 LayerNorm critics; 1 update per frame after 5,000 frames; a 256-unit
     # state trunk and one 256-unit hidden layer in each network)

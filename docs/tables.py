@@ -202,6 +202,8 @@ DISTILLED = [
     ("toilet, 2.2x + student noise ({n})", "students/distill_toilet_episodes2x_noise.json", False, (1,), ""),
     ("toilet, `successonly` on seen + wide toilets, same episodes (`wide`, {n})",
      "rl/curriculum/toilet_cloud_student_wide.json", False, None, ""),
+    ("toilet, `successonly` on seen + wide toilets, 2.2x episodes (`wide2x`, {n})",
+     "rl/curriculum/toilet_cloud_student_wide2x.json", False, (0, 1), ""),
     ("bucket, defaults ({n})", "students/distill_bucket.json", False, None, ""),
     ("bucket, demonstration noise 0.05 ({n})", "students/distill_bucket_demonoise005.json", False, None, ""),
     ("bucket, from the overhand expert, lift by turning the hand ({n})", "students/distill_bucket_overhand.json", False,

@@ -251,6 +251,8 @@ TOILET_TEMPLATES = [
       "students/success_by_template_toilet_successonly_s12_heldout.json"]),
     ("students, `successonly` on seen + wide toilets (`wide`)",
      ["students/success_by_template_toilet_wide_heldout.json"]),
+    ("students, `wide` with twice the episodes per toilet (`wide2x`)",
+     ["students/success_by_template_toilet_wide2x_heldout.json"]),
     ("RL from the curriculum's students (`student_anchored_floor`)", ["rl/success_by_template_toilet_floor_heldout.json"]),
     ("RL, reverse curriculum (`student_anchored_floor_reverse_d17`)",
      ["rl/success_by_template_toilet_reverse_heldout.json"]),

@@ -641,13 +641,13 @@ def test_state_diagnostic_reports_frames_to_first_success_and_reads_back_only_id
 
 
 def test_the_training_benchmark_compares_a_whole_iteration_with_an_earlier_commit(load_benchmark, git_checkout):
-    """Structure only (timings are the benchmark's business): two 500-frame cpu-preset batches collected
+    """Structure only (timings are the benchmark's business): two 100-frame cpu-preset batches collected
     in-process, this checkout against a worktree of HEAD, each in its own interpreter."""
     bench = load_benchmark("bench_training")
-    row = bench.iteration_vs_ref("HEAD", "laptop", batches=2, rounds=1, frames_per_batch=500, workers=0)
+    row = bench.iteration_vs_ref("HEAD", "laptop", batches=2, rounds=1, frames_per_batch=100, workers=0)
     assert row["iteration_fps_subprocess"] > 0 and row["ref_iteration_fps"] > 0
     assert row["iteration_vs_ref"] == pytest.approx(row["iteration_fps_subprocess"] / row["ref_iteration_fps"])
-    assert row["ref"] == "HEAD" and row["ref_frames_per_batch"] == 500
+    assert row["ref"] == "HEAD" and row["ref_frames_per_batch"] == 100
     calls = bench.policy_call_ms(calls=2, rounds=1)  # the one-action timing of both policy forms
     assert set(calls) == {"actor_critic", "acting", "acting_speedup"} and calls["acting"] > 0
     assert calls["acting_speedup"] == pytest.approx(calls["actor_critic"] / calls["acting"])

@@ -64,7 +64,7 @@ harness = sibling_script(__file__, "_harness")  # benchmarks/_harness.py: runs o
 # ``training_iteration`` as a script, with only the API every commit since 2f696c9 has (``ppo.preset``,
 # ``ppo.train``, the history's ``collect_s`` / ``update_s``), for ``--ref``: run in each checkout.
 ITERATION = """
-import json, os, sys, tempfile
+import dataclasses, json, os, sys, tempfile
 import torch
 from dexart_lite.rl import ppo
 task, batches, frames_per_batch, workers = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
@@ -72,6 +72,8 @@ torch.set_num_threads(os.cpu_count())  # the learner's threads, as in main()
 with tempfile.TemporaryDirectory() as out:
     cfg = ppo.preset("cpu", task=task, frames=batches * frames_per_batch, frames_per_batch=frames_per_batch,
                      workers=workers, out=out, eval_episodes=0, progress=False)
+    # a batch smaller than the preset's minibatch (the tests' smoke runs) is one minibatch
+    cfg = dataclasses.replace(cfg, minibatch=min(cfg.minibatch, frames_per_batch))
     history = ppo.train(cfg)["history"][1:]  # the first batch includes the workers' start-up
 n = len(history) * cfg.frames_per_batch
 print(json.dumps({"iteration_fps": n / sum(h["collect_s"] + h["update_s"] for h in history)}))

@@ -321,7 +321,7 @@ def config(task: str, obs: str, recipe: str, seed: int, frames: int, args):
     algo = overrides.pop("algo", "ppo")
     if algo == "sac":
         if fast_mode():
-            overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1,
+            overrides.update(frames=200, frames_per_batch=100, warmup_frames=100, batch=32, demo_episodes=1, utd=0.25,
                              max_episode_steps=30, eval_episodes=1, num_points=64, curriculum_demos=2, buffer=1000)
         return LEARNERS[algo].config(**overrides)
     overrides["workers"] = args.workers

@@ -43,7 +43,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from dexart_lite.utils import check_choice
+from dexart_lite.utils import check_choice, fast_mode
 
 SCHEDULES = ("none", "uniform", "reverse")
 LEVEL_ATTR = "curriculum_level"  # the wrapper attribute the trainer sets on every worker
@@ -343,6 +343,13 @@ class Driven:
     def __call__(self, obs: dict) -> np.ndarray:
         self.label = np.asarray(self.guide(obs), dtype=np.float64)
         return self.driver(obs)
+
+
+def guide_env_kwargs(env_kwargs: dict) -> dict:
+    """The learner's env settings for the guide's demonstrations: without its ``max_episode_steps``, since the
+    guide needs the env's whole horizon to succeed; a fast-mode smoke run (``DEXART_LITE_FAST=1``) keeps the
+    learner's cap, as it caps everything else."""
+    return {k: v for k, v in env_kwargs.items() if k != "max_episode_steps" or fast_mode()}
 
 
 def guide_demos(task: str, split: str, episodes_per_object: int, noise: float, seed: int,

@@ -45,7 +45,7 @@ from dexart_lite.rl import common
 from dexart_lite.rl.checkpoint import load_checkpoint, network_encoder, save_checkpoint
 from dexart_lite.rl.common import (CHECKPOINT, batch_stats, curriculum_config, evaluate_and_report, make_curriculum,
                                    progress_bar)
-from dexart_lite.rl.curriculum import guide_demos, send_level
+from dexart_lite.rl.curriculum import guide_demos, guide_env_kwargs, send_level
 from dexart_lite.rl.env import env_dims, make_env
 from dexart_lite.rl.ppo_config import PPOConfig
 from dexart_lite.models.pointnet import ENCODER_SIZES
@@ -211,9 +211,8 @@ def demonstrations(cfg: SACConfig) -> tuple[TensorDict | None, dict]:
     """The guide's transitions on the training objects (None without ``--demo-episodes``) and what they were."""
     if not cfg.demo_episodes:
         return None, {"frames": 0}
-    kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
-    data, success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise, 10_000 + cfg.seed, kwargs,
-                                cfg.guide, transitions=True)
+    data, success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise, 10_000 + cfg.seed,
+                                guide_env_kwargs(cfg.env_kwargs()), cfg.guide, transitions=True)
     return data, {"frames": len(data), "guide_success": success}
 
 

@@ -16,7 +16,7 @@ from dexart_lite.demos import load_demos
 from dexart_lite.models.actor_critic import HEAD_HIDDEN, POINTS_KEY, STATE_HIDDEN, STATE_KEY, architecture, trunk_of
 from dexart_lite.models.pointnet import PointNetEncoder
 from dexart_lite.rl.checkpoint import load_checkpoint, policy_function
-from dexart_lite.rl.curriculum import guide_demos
+from dexart_lite.rl.curriculum import guide_demos, guide_env_kwargs
 
 
 def initial_weights(cfg, state_dim: int, action_dim: int) -> tuple[dict, dict | None]:
@@ -93,7 +93,7 @@ def clone_the_guide(cfg, actor_critic) -> tuple:
     the DAgger rounds again (its weights come from the checkpoint). With ``--init-from`` nothing is cloned:
     the loaded policy drives the DAgger rounds unchanged, so a resumed run (which loads it before the
     checkpoint) collects the same data again."""
-    kwargs = {k: v for k, v in cfg.env_kwargs().items() if k != "max_episode_steps"}
+    kwargs = guide_env_kwargs(cfg.env_kwargs())
     samples, guide_success = guide_demos(cfg.task, cfg.split, cfg.demo_episodes, cfg.demo_noise, 10_000 + cfg.seed,
                                          kwargs, cfg.guide)
     # an --init-from policy keeps its own input normalisation (the one it was trained with)

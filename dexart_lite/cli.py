@@ -42,7 +42,9 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
     """One ``--flag-name`` per field of the dataclass ``config_cls`` (or of its fields in ``names``), typed from
     its annotation (``int | None`` -> int; ``list[int]`` -> one or more ints), with the field's
     ``metadata["help"]`` (or ``helps[name]``), its ``metadata["choices"]`` and "(default_label: value)"; a
-    ``metadata["min"]`` makes argparse refuse a smaller value, naming the flag;
+    ``metadata["min"]`` makes argparse refuse a smaller value, naming the flag; ``metadata["parse"]`` converts each
+    value instead of the annotation's type (e.g. ``SEED=CHECKPOINT`` -> a pair); ``metadata["positional"]`` makes
+    the field a positional argument (a list: one or more values);
     booleans get ``--flag`` / ``--no-flag``. ``defaults``: other defaults than the dataclass's, by field name.
     ``given_only``: every flag defaults to None, so that the caller can tell the flags given from the rest (a
     preset, or another config's defaults, then fills those in). ``required``: fields whose flag must be given.
@@ -62,7 +64,8 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
         flag = "--" + f.name.replace("_", "-")
         value = defaults.get(f.name, f.default if f.default is not dataclasses.MISSING else
                              f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
-        help_text = helps.get(f.name, f.metadata.get("help", "")) + f" ({default_label}: {_shown(value)})"
+        help_text = helps.get(f.name, f.metadata.get("help", "")) + \
+            ("" if f.name in required or f.metadata.get("positional") else f" ({default_label}: {_shown(value)})")
         default = None if given_only else value
         choices = f.metadata.get("choices")
         need = {"required": True} if f.name in required else {}
@@ -73,9 +76,13 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
         kinds = ([k for k in typing.get_args(hint) if k is not type(None)]
                  if typing.get_origin(hint) in (typing.Union, types.UnionType) else [hint])
         many = typing.get_origin(kinds[0]) in (list, tuple)  # list[int], tuple[str, ...]: one or more values
-        kind = typing.get_args(kinds[0])[0] if many else kinds[0]
+        kind = f.metadata.get("parse") or (typing.get_args(kinds[0])[0] if many else kinds[0])
         if "min" in f.metadata:
             kind = _at_least(kind, f.metadata["min"])
+        if f.metadata.get("positional"):  # a positional argument is required, unless it has a default
+            parser.add_argument(f.name, type=kind, help=help_text, choices=choices,
+                                **({"nargs": "+"} if many else {}))
+            continue
         parser.add_argument(flag, type=kind, default=default, help=help_text, choices=choices, **need,
                             **({"nargs": "+"} if many else {}))
 

@@ -19,6 +19,7 @@ import importlib.util
 import json
 import re
 import statistics
+import sys
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
 
@@ -956,6 +957,7 @@ def curriculum_module():
     """``benchmarks/rl/curriculum_table.py``, loaded as ``tests/test_docs_tables.py`` loads it."""
     spec = importlib.util.spec_from_file_location("curriculum_table", CURRICULUM_TABLE)
     module = importlib.util.module_from_spec(spec)
+    sys.modules["curriculum_table"] = module  # where @dataclass looks a module up
     spec.loader.exec_module(module)
     return module
 

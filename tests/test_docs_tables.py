@@ -1,21 +1,18 @@
 """The results tables in the docs are generated from the committed JSON: a table typed or left stale fails here."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 from dexart_lite.rl.evaluate import TEST_SEEDS
+from dexart_lite.utils import sibling_script
 
 TEST_SEED = TEST_SEEDS[0]
 SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "rl" / "curriculum_table.py"
 
 
 def load():
-    spec = importlib.util.spec_from_file_location("curriculum_table", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return sibling_script(str(SCRIPT), "curriculum_table")  # loaded by path, registered where @dataclass looks
 
 
 def test_the_rl_tables_match_their_json():

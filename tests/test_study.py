@@ -115,13 +115,13 @@ def test_parallel_jobs_give_the_runs_of_one_after_the_other(tmp_path):
     overrides = {"objects": OBJECT, "max_episode_steps": 6}
     kwargs = dict(arms=["small", "medium"], overrides=overrides, progress=False)
     # under two parents: a study does not reuse the runs of one beside it here
-    parallel = study.run_study("encoder", "laptop", [0, 1], tmp_path / "a" / "encoder", jobs=2, **kwargs)
-    serial = study.run_study("encoder", "laptop", [0, 1], tmp_path / "b" / "encoder", **kwargs)
+    parallel = study.run_study("encoder", "laptop", [1], tmp_path / "a" / "encoder", jobs=2, **kwargs)
+    serial = study.run_study("encoder", "laptop", [1], tmp_path / "b" / "encoder", **kwargs)
     keys = ("seed", "seen_success", "unseen_success", "expert_frames", "student_frames", "per_object", "resumed")
     for arm in ("small", "medium"):
         assert [{k: r[k] for k in keys} for r in parallel["arms"][arm]["per_seed"]] == \
                [{k: r[k] for k in keys} for r in serial["arms"][arm]["per_seed"]]
-        assert [r["resumed"] for r in parallel["arms"][arm]["per_seed"]] == [False, False]
+        assert [r["resumed"] for r in parallel["arms"][arm]["per_seed"]] == [False]
     assert (parallel["jobs"], serial["jobs"]) == (2, 1)
     assert "2 runs at a time" in parallel["wall_time_note"]
     # the costliest first: the PointNet's multiply-adds per point order the queue

@@ -27,9 +27,11 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make
 from dexart_lite.experts import SOLVERS, ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
@@ -87,9 +89,16 @@ def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, obj
     return rows
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    sigma: float = field(default=0.1, metadata={"min": 0.0, "help": "action noise std"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigma", type=float, default=0.1, help="action noise std")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "splits", "episodes_per_object", "seed")
     harness.options(parser, "expert", "json")
     args = parser.parse_args(argv)

@@ -24,10 +24,12 @@ from __future__ import annotations
 import argparse
 import functools
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.objects import list_objects
 from dexart_lite.experts import SOLVERS
 from dexart_lite.experts.solve import solve
@@ -39,6 +41,14 @@ harness = sibling_script(__file__, "_harness")
 SIGMAS = (0.0, 0.1, 0.3, 0.5, 1.0)
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    noise_part: str = field(default="all", metadata={"choices": list(NOISE_PARTS), "help": "the action dimensions "
+                            "perturbed: all, arm (the palm twist) or hand (the joint targets)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", "jobs", splits=["seen"], episodes_per_object=2, seeds=[0],
@@ -46,8 +56,7 @@ def main(argv=None) -> dict:
                                     "mean", "json": "write the results here (and the PNG next to it); a run stopped "
                                     "half-way continues from it"})
     harness.options(parser, "expert", sigmas=list(SIGMAS))
-    parser.add_argument("--noise-part", default="all", choices=list(NOISE_PARTS),
-                        help="the action dimensions perturbed: all, arm (the palm twist) or hand (the joint targets)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "json")
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence

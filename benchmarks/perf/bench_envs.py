@@ -23,11 +23,13 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import psutil
 
 import dexart_lite
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make
 from dexart_lite.rollout import parallel_step_rates, random_actions, step_rate
 from dexart_lite.utils import provenance, sibling_script, write_json
@@ -90,12 +92,18 @@ def reset_rss_growth_mb(resets: int) -> float:
     return growth
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    two_process: bool = field(default=True, metadata={"help": "also measure two worker processes stepping at once"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "tasks", "steps", "rounds", resets=2000,
                     helps={"resets": "resets of the memory check (0: skip it)"})
-    parser.add_argument("--two-process", action=argparse.BooleanOptionalAction, default=True,
-                        help="also measure two worker processes stepping at once")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "ref", "json", helps={"ref": "an earlier commit whose 1-process rate is measured side by "
                                                          "side"})
     args = parser.parse_args(argv)

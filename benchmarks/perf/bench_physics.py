@@ -29,7 +29,9 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from dataclasses import dataclass, field
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs.base import physics_setting
 from dexart_lite.experts.solve import solve
 from dexart_lite.rollout import step_rate
@@ -74,18 +76,25 @@ def solver_success(tasks: list[str], settings: list[str], episodes: int, toleran
     return out
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    settings: list[str] = field(default_factory=lambda: [BASELINE, "30x10", "20x10", "50x5"],
+                                metadata={"help": "ITERATIONSxFRAME_SKIP, the first one the baseline"})
+    speed: bool = field(default=True, metadata={"help": "measure the steps/s of every setting (alone on the machine: "
+                                                        "these are timings)"})
+    solvers: bool = field(default=True, metadata={"help": "also run the scripted solvers on every seen and unseen "
+                                                          "object per setting"})
+    tolerance: float = field(default=0.03, metadata={"min": 0.0, "help": "allowed change of a solver's success"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "tasks")
-    parser.add_argument("--settings", nargs="+", default=[BASELINE, "30x10", "20x10", "50x5"],
-                        help="ITERATIONSxFRAME_SKIP, the first one the baseline (default: 50x10 30x10 20x10 50x5)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "steps", "rounds")
-    parser.add_argument("--speed", action=argparse.BooleanOptionalAction, default=True,
-                        help="measure the steps/s of every setting (alone on the machine: these are timings)")
-    parser.add_argument("--solvers", action=argparse.BooleanOptionalAction, default=True,
-                        help="also run the scripted solvers on every seen and unseen object per setting")
     harness.options(parser, "episodes_per_object")
-    parser.add_argument("--tolerance", type=float, default=0.03, help="allowed change of a solver's success")
     harness.options(parser, "json")
     args = parser.parse_args(argv)
     for setting in args.settings:

@@ -36,6 +36,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from dexart_lite.cli import add_config_arguments  # noqa: E402
 from dexart_lite.models.actor_critic import make_actor_critic  # noqa: E402
 from dexart_lite.rl import ppo  # noqa: E402
 from dexart_lite.rl.env import make_env  # noqa: E402
@@ -89,14 +90,23 @@ def plot(result: dict, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+@dataclasses.dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    workers: list[int] = dataclasses.field(default_factory=lambda: [1], metadata={
+        "help": "collector workers, one setting each (the default: 1 up to this machine's cores)"})
+    backends: list[str] = dataclasses.field(default_factory=lambda: ["process", "ray"],
+                                            metadata={"choices": ["process", "ray"], "help": "the collection backends"})
+    per_worker: int = dataclasses.field(default=500, metadata={"min": 1, "help": "frames per worker per batch"})
+
+
 def main(argv=None) -> dict:
     cores = os.cpu_count() or 1
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task")
-    parser.add_argument("--workers", type=int, nargs="+", default=list(range(1, cores + 1)))
-    parser.add_argument("--backends", nargs="+", default=["process", "ray"], choices=["process", "ray"])
+    add_config_arguments(parser, Flags, overrides=False, defaults={"workers": list(range(1, cores + 1))})
     harness.options(parser, frames=4000, helps={"frames": "timed frames per setting"})
-    parser.add_argument("--per-worker", type=int, default=500, help="frames per worker per batch")
     harness.options(parser, steps=1000, json=RESULTS, helps={"steps": "env steps per process (plain_env)"})
     args = parser.parse_args(argv)
     if fast_mode() and args.json == RESULTS:

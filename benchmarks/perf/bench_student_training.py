@@ -33,10 +33,12 @@ import argparse
 import tempfile
 import time
 from contextlib import nullcontext
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.demos import collect_demos, load_demos, read_manifest
 from dexart_lite.imitation.distill import DistillConfig, build_student, train_student
 from dexart_lite.models import pointnet
@@ -64,18 +66,26 @@ def train_once(variant: str, cfg: DistillConfig, dims: dict, demos, data, epochs
     return {"seconds": seconds, "samples_per_s": epochs * data.batch_size[0] / seconds, "loss_last_epoch": losses[-1]}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    demos: Path | None = field(default=None, metadata={"help": "a demonstrations folder (None: collect a small one)"})
+    samples: int = field(default=4096, metadata={"min": 1, "help": "train on the first SAMPLES demonstrations"})
+    repeats: int = field(default=3, metadata={"min": 1, "help": "rounds of every variant in turn (A B C A B C ...)"})
+    variants: list[str] = field(default_factory=lambda: list(VARIANTS),
+                                metadata={"choices": list(VARIANTS), "help": "the training variants timed"})
+    encoders: list[str] = field(default_factory=lambda: ["small"], metadata={
+        "choices": list(ENCODER_SIZES), "help": "PointNet sizes; with more than one, every variant runs once per size"})
+    chunks: list[int] = field(default_factory=lambda: [pointnet.CHUNK], metadata={
+        "min": 1, "help": "clouds per per-point pass (pointnet.CHUNK); with more than one, every label runs once per "
+                          "chunk"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--demos", type=Path, help="a demonstrations folder (default: collect a small one)")
-    parser.add_argument("--samples", type=int, default=4096, help="train on the first SAMPLES demonstrations")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, epochs=2)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
-    parser.add_argument("--encoders", nargs="+", default=["small"], choices=list(ENCODER_SIZES),
-                        help="PointNet sizes; with more than one, every variant runs once per size")
-    parser.add_argument("--chunks", nargs="+", type=int, default=[pointnet.CHUNK],
-                        help="clouds per per-point pass (pointnet.CHUNK); with more than one, every label runs once "
-                        "per chunk")
     harness.options(parser, "threads", "json", helps={"json": "where to write the results (default: print only)"})
     args = parser.parse_args(argv)
     if fast_mode():  # a smoke run of the script itself, not evidence

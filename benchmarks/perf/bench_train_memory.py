@@ -22,9 +22,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import tempfile
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl import ppo
 from dexart_lite.utils import fast_mode, process_pool, provenance, sibling_script, sigterm_interrupts, write_json
 
@@ -52,14 +54,21 @@ def summary(history: list[dict], skip: int) -> dict:
             "fps": float(np.mean([row["fps"] for row in history[1:]] or [history[0]["fps"]]))}
 
 
+@dataclass
+class Flags:
+    """This script's own flags (its --jobs means the arms side by side, not the harness's runs at once)."""
+
+    batches: int = field(default=16, metadata={"min": 1, "help": "PPO batches of 4,000 frames per arm"})
+    skip: int = field(default=3, metadata={"min": 0, "help": "batches left out of the growth's fit (start-up)"})
+    jobs: int = field(default=2, metadata={"choices": [1, 2], "help": "2: the arms side by side in two processes (the "
+                      "figures); 1: one after the other in this process (a smoke run: the second arm's memory starts "
+                      "from the first's)"})
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     harness.options(parser, task="faucet")
-    parser.add_argument("--batches", type=int, default=16, help="PPO batches of 4,000 frames per arm")
-    parser.add_argument("--skip", type=int, default=3, help="batches left out of the growth's fit (start-up)")
-    parser.add_argument("--jobs", type=int, default=2, choices=(1, 2),
-                        help="2: the arms side by side in two processes (the figures); 1: one after the other in "
-                             "this process (a smoke run: the second arm's memory starts from the first's)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "json")
     args = parser.parse_args(argv)
 

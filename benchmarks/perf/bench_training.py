@@ -49,6 +49,7 @@ from pathlib import Path
 import torch
 from tensordict import TensorDict
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make as make_gym_env
 from dexart_lite.envs.base import physics_setting
 from dexart_lite.models.actor_critic import Acting, encoder_of, make_actor_critic
@@ -352,20 +353,31 @@ def print_tables(result: dict, ref: str | None) -> None:
               f"frames/s, {ref} {iteration['ref_iteration_fps']:.0f} frames/s: x{iteration['iteration_vs_ref']:.2f}")
 
 
+@dataclasses.dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    collector_batch: int = dataclasses.field(default=ppo.PRESETS["cpu"]["frames_per_batch"], metadata={
+        "min": 1, "help": "frames per collector batch (train: 4000 on the cpu preset, 20000 faithful)"})
+    reps: int = dataclasses.field(default=5, metadata={"min": 1, "help": "timed minibatches per encoder (median)"})
+    iteration_batches: int = dataclasses.field(default=3, metadata={"min": 2, "help": "cpu-preset batches (first one "
+                                                                                     "not timed)"})
+    ref_rounds: int = dataclasses.field(default=2, metadata={"min": 1, "help": "iterations per checkout with --ref "
+                                                                               "(median)"})
+    physics: str | None = dataclasses.field(default=None, metadata={
+        "help": "also measure the cpu-preset iteration with this physics setting (ITERATIONSxFRAME_SKIP, e.g. 20x5) "
+                "against the default, alternately (--ref-rounds each)"})
+    only_physics: bool = dataclasses.field(default=False, metadata={"help": "with --physics: measure nothing else"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", frames=4000, helps={"frames": "timed frames per collection variant and round"})
-    parser.add_argument("--collector-batch", type=int, default=ppo.PRESETS["cpu"]["frames_per_batch"],
-                        help="frames per collector batch (train: 4000 on the cpu preset, 20000 faithful)")
-    parser.add_argument("--reps", type=int, default=5, help="timed minibatches per encoder (median)")
-    parser.add_argument("--iteration-batches", type=int, default=3, help="cpu-preset batches (first one not timed)")
+    add_config_arguments(parser, Flags, overrides=False, names=["collector_batch", "reps", "iteration_batches"])
     harness.options(parser, "rounds", "ref", helps={"rounds": "rounds of the collection variants (median)",
                                                     "ref": "an earlier commit whose whole cpu-preset iteration is "
                                                            "measured side by side"})
-    parser.add_argument("--ref-rounds", type=int, default=2, help="iterations per checkout with --ref (median)")
-    parser.add_argument("--physics", help="also measure the cpu-preset iteration with this physics setting "
-                        "(ITERATIONSxFRAME_SKIP, e.g. 20x5) against the default, alternately (--ref-rounds each)")
-    parser.add_argument("--only-physics", action="store_true", help="with --physics: measure nothing else")
+    add_config_arguments(parser, Flags, overrides=False, names=["ref_rounds", "physics", "only_physics"])
     harness.options(parser, "json")
     args = parser.parse_args(argv)
     if args.physics:

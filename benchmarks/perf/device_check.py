@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
@@ -59,15 +60,23 @@ def distill_figures(task: str, device: str, epochs: int, demo_episodes: int, out
             "round_train_s": [round(r["train_s"], 2) for r in rounds]}
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    devices: list[str] = field(default_factory=lambda: ["cpu", "cuda"],
+                               metadata={"choices": ["cpu", "cuda"], "help": "the devices compared"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--devices", nargs="+", default=["cpu", "cuda"], choices=["cpu", "cuda"])
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "task", frames=24_000, helps={"frames": "PPO frames per device (6 batches of 4,000)"})
-    add_config_arguments(parser, ppo.PPOConfig, names=["workers"], overrides=False, defaults={"workers": 2},
-                         helps={"workers": "PPO collector processes"})
+    add_config_arguments(parser, ppo.PPOConfig, names=["workers", "demo_episodes"], overrides=False,
+                         defaults={"workers": 2, "demo_episodes": 4},
+                         helps={"workers": "PPO collector processes", "demo_episodes": "expert episodes per seen "
+                                "object for BC (the DAgger round runs half as many)"})
     harness.options(parser, epochs=5, helps={"epochs": "distillation BC epochs per device"})
-    parser.add_argument("--demo-episodes", type=int, default=4,
-                        help="expert episodes per seen object for BC (the DAgger round runs half as many)")
     harness.options(parser, json=RESULTS)
     args = parser.parse_args(argv)
     if fast_mode() and args.json == RESULTS:

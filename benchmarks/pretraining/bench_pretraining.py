@@ -16,6 +16,7 @@ import argparse
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
@@ -63,12 +64,19 @@ def epoch_seconds(method: str, data: datasets.PointCloudSet, encoder_size: str =
     return time.perf_counter() - start
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the DAM's come from DamConfig."""
+
+    objects: int = field(default=2, metadata={"min": 1, "help": "seen objects per task for the DAM timing"})
+    clouds: int = field(default=150, metadata={"min": 1, "help": "DAM clouds per object for the timing"})
+    train_clouds: int = field(default=1000, metadata={"min": 1, "help": "clouds in the fixed training set"})
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "tasks", helps={"tasks": "tasks whose DAM generation is timed"})
-    parser.add_argument("--objects", type=int, default=2, help="seen objects per task for the DAM timing")
-    parser.add_argument("--clouds", type=int, default=150, help="DAM clouds per object for the timing")
-    parser.add_argument("--train-clouds", type=int, default=1000, help="clouds in the fixed training set")
+    add_config_arguments(parser, Flags, overrides=False)
     add_config_arguments(parser, datasets.DamConfig, names=["samples_per_object"], overrides=False,
                          helps={"samples_per_object": "DAM size the minutes per task are given for"})
     harness.options(parser, "json", threads=2)

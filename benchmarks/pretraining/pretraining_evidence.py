@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
@@ -29,7 +30,7 @@ from dexart_lite.pretrain import data as datasets
 from dexart_lite.pretrain import train as pretrain
 from dexart_lite.pretrain.figures import plot_segmentation
 from dexart_lite.cli import add_config_arguments
-from dexart_lite.rl.ppo import PPOConfig
+from dexart_lite.rl.ppo import PRESETS, PPOConfig
 from dexart_lite.study import run_arm
 from dexart_lite.utils import benchmark_results, provenance, save_figure, sibling_script
 
@@ -240,9 +241,19 @@ def untrained_knn(data_root: Path, seed: int) -> float:
     return pretrain.knn_accuracy(*bank, pretrain.encode_all(encoder, val_set), target)
 
 
+@dataclass
+class Flags:
+    """This script's own flags, each on the step that takes it; the shared ones come from the harness."""
+
+    root: Path = field(default=Path("runs/pretrain"), metadata={"help": "datasets and runs"})
+    preset: str = field(default="cpu", metadata={"choices": list(PRESETS), "help": "the PPO preset (ppo step)"})
+    object_samples: int = field(default=datasets.DEFAULT_OBJECT_SAMPLES, metadata={
+        "min": 1, "help": "clouds per generated object for the methods' pretraining data"})
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--root", type=Path, default=Path("runs/pretrain"), help="datasets and runs")
+    add_config_arguments(parser, Flags, overrides=False, names=["root"])
     harness.options(parser, results=benchmark_results(__file__))
     sub = parser.add_subparsers(dest="step", required=True)
     seg = sub.add_parser("seg", help="DAM data + segmentation pretraining + mIoU per task")
@@ -252,12 +263,12 @@ def main(argv=None) -> int:
     ppo_parser = sub.add_parser("ppo", help="PPO from the segmentation encoder vs. from scratch")
     harness.options(ppo_parser, "task", frames=100_000, seeds=[0], eval_episodes=4)
     add_config_arguments(ppo_parser, PPOConfig, names=["workers"], defaults={"workers": 2}, overrides=False)
-    ppo_parser.add_argument("--preset", default="cpu")
+    add_config_arguments(ppo_parser, Flags, overrides=False, names=["preset"])
     after = sub.add_parser("after-ppo", help="the PPO-fine-tuned encoder under the segmentation head")
     harness.options(after, "task", "seed")
     methods = sub.add_parser("methods", help="cls, recon and simsiam runs with their metrics")
     harness.options(methods, "task", "seed", epochs=5)
-    methods.add_argument("--object-samples", type=int, default=datasets.DEFAULT_OBJECT_SAMPLES)
+    add_config_arguments(methods, Flags, overrides=False, names=["object_samples"])
     args = parser.parse_args(argv)
     args.provenance = provenance(__file__, argv)  # recorded in every JSON a step writes
     return {"seg": run_seg, "ppo": run_ppo, "after-ppo": run_after_ppo, "methods": run_methods}[args.step](args)

@@ -28,10 +28,12 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl import ppo
 from dexart_lite.rl.checkpoint import actor_critic_from_checkpoint, load_checkpoint
 from dexart_lite.rl.evaluate import evaluate, evaluate_many
@@ -110,18 +112,26 @@ def heldout(per_seed: list[dict], episodes: int, seed: int, jobs: int) -> dict:
             **{k: float(np.mean([row[k] for row in rows])) for k in keys}, "per_seed": rows}
 
 
+@dataclass
+class Flags:
+    """This script's own flags (and --set: PPOConfig fields); the shared ones come from the harness."""
+
+    students: str = field(default="", metadata={"help": "student run folder per seed, with {seed}"})
+    variant: str = field(default="", metadata={"help": "a name for --set, in the run folders"})
+    heldout_episodes: int = field(default=0, metadata={"min": 0, "help": "also evaluate students and final policies "
+                                  "with this many episodes per object"})
+    heldout_seed: int = field(default=1000, metadata={"help": "env seed of the held-out evaluation"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", seeds=[0, 1])
-    parser.add_argument("--students", required=True, help="student run folder per seed, with {seed}")
+    add_config_arguments(parser, Flags, overrides=False, required=("students",))
     harness.options(parser, "runs", frames=300_000, helps={"frames": "PPO frames per seed"})
+    # by hand: these FIELD=VALUE pairs change the finetune preset, not the PPOConfig defaults add_config_arguments reads
     parser.add_argument("--set", dest="overrides", nargs="+", default=[], metavar="FIELD=VALUE",
                         help="PPOConfig fields to change from the finetune preset, e.g. critic_warmup=0")
-    parser.add_argument("--variant", default="", help="a name for --set, in the run folders")
     harness.options(parser, json=None, helps={"json": "default benchmarks/results/rl/finetune_<task>.json"})
-    parser.add_argument("--heldout-episodes", type=int, default=0,
-                        help="also evaluate students and final policies with this many episodes per object")
-    parser.add_argument("--heldout-seed", type=int, default=1000, help="env seed of the held-out evaluation")
     harness.options(parser, "jobs", helps={"jobs": "held-out evaluations run side by side (training: one seed at "
                                                    "a time)"})
     args = parser.parse_args(argv)

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass, field
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make
 from dexart_lite.rl.curriculum import GuidedStart
 from dexart_lite.utils import fast_mode, provenance, sibling_script, write_json
@@ -29,11 +31,19 @@ def timed_start(env: GuidedStart, seed: int, h: int) -> float:
     return time.perf_counter() - tick
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    h: int = field(default=100, metadata={"min": 0, "help": "guide steps per start"})
+    repeats: int = field(default=5, metadata={"min": 1, "help": "rounds of one timed guided start per variant (the "
+                                                               "best of each)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task")
-    parser.add_argument("--h", type=int, default=100, help="guide steps per start")
-    parser.add_argument("--repeats", type=int, default=5)
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "json")
     args = parser.parse_args(argv)
     if fast_mode():

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from dexart_lite.cli import add_config_arguments
@@ -31,16 +32,23 @@ PAPER_NO_PRETRAIN = {"faucet": (0.30, 0.28), "bucket": (0.51, 0.56), "laptop": (
 PAPER_FRAMES = {"faucet": 10e6, "bucket": 40e6, "laptop": 15e6, "toilet": 8e6}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    preset: str = field(default="faithful", metadata={"choices": list(ppo.PRESETS), "help": "the PPO preset"})
+    out: Path | None = field(default=None, metadata={"help": "training folder (None: runs/learning_<task>)"})
+    tag: str = field(default="", metadata={"help": "suffix of the result names: learning_<task>_<tag>.json (needed "
+                                                   "by --set)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_config_arguments(parser, ppo.PPOConfig, names=["task", "frames", "encoder", "workers", "seed", "eval_episodes",
                                                        "init_log_std", "resume"], defaults={"init_log_std": None},
                          helps={"init_log_std": "initial log std of the actions (None: the preset's; DexArt: 0)"})
-    parser.add_argument("--preset", default="faithful", choices=list(ppo.PRESETS))
-    parser.add_argument("--out", type=Path, help="training folder (default runs/learning_<task>)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, results=RESULTS)
-    parser.add_argument("--tag", default="", help="suffix of the result names: learning_<task>_<tag>.json (needed "
-                        "by --set)")
     args = parser.parse_args(argv)
     name = f"learning_{args.task}" + (f"_{args.tag}" if args.tag else "")
     out = args.out or Path("runs") / name

@@ -31,10 +31,12 @@ import argparse
 import json
 import math
 import subprocess
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
 from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
@@ -140,15 +142,23 @@ def plot(series: dict, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+@dataclass
+class Flags:
+    """This script's own arguments; the shared ones come from the harness."""
+
+    checkpoints: list[tuple] = field(default_factory=list, metadata={
+        "positional": True, "parse": parse_spec, "help": "SERIES=CHECKPOINT (a file or REV:path)"})
+    start: list[tuple] = field(default_factory=list, metadata={
+        "parse": parse_spec, "help": "SERIES=CHECKPOINT a series started from (drawn at 0 RL frames)"})
+    summary_from: int = field(default=0, metadata={"min": 0, "help": "summarise the checkpoints of at least this many "
+                              "RL frames (the earlier ones are still evaluated and drawn)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoints", nargs="+", type=parse_spec, help="SERIES=CHECKPOINT (a file or REV:path)")
-    parser.add_argument("--start", nargs="*", type=parse_spec, default=[], help="SERIES=CHECKPOINT a series started "
-                        "from (drawn at 0 RL frames)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, eval_episodes=10)
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of every evaluation (1000: held out)"})
-    parser.add_argument("--summary-from", type=int, default=0, help="summarise the checkpoints of at least this "
-                        "many RL frames (the earlier ones are still evaluated and drawn)")
     harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), required=("json",))
     args = parser.parse_args(argv)
     starts = dict(args.start)

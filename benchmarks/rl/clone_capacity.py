@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 import functools
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import torch
@@ -67,16 +67,24 @@ def clone(task: str, obs: str, arch: str, seed: int, demo_episodes: int, demo_no
             "unseen_success": success["unseen"], "wall_time_s": round(time.perf_counter() - start, 1)}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    arch: list[str] = field(default_factory=lambda: list(ARCHS),
+                            metadata={"choices": list(ARCHS), "help": "the clone architectures, one run each"})
+    rounds: int = field(default=3, metadata={"min": 0, "help": "DAgger rounds"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", "obs")
-    parser.add_argument("--arch", nargs="+", default=list(ARCHS), choices=list(ARCHS))
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, seeds=[0, 1])
     add_config_arguments(parser, ppo.PPOConfig, names=["demo_episodes", "demo_noise"], overrides=False,
                          defaults={"demo_episodes": 4, "demo_noise": 0.1})
     harness.options(parser, "eval_episodes", "json", epochs=50,
                     helps={"epochs": "BC epochs after the demos and after each round"})
-    parser.add_argument("--rounds", type=int, default=3, help="DAgger rounds")
     harness.options(parser, "jobs", helps={"jobs": "clones trained at once (one process each)"})
     args = parser.parse_args(argv)
     start = time.perf_counter()

@@ -512,28 +512,39 @@ def _config(folder: Path) -> dict:
     return json.loads(record.read_text())["config"] if record.exists() else {}
 
 
+@dataclasses.dataclass
+class Flags:
+    """This script's own flags (--no-committed is written by hand: a boolean field would also make --no-no-committed);
+    the shared ones come from the harness, the learner's from PPOConfig."""
+
+    recipe: str = dataclasses.field(default="reverse_bc", metadata={"choices": list(RECIPES), "help": "the recipe"})
+    students_only: bool = dataclasses.field(default=False, metadata={
+        "help": "a student recipe's distillation step alone (no RL), to <task>_cloud_student.json"})
+    committed: Path | None = dataclasses.field(default=None, metadata={
+        "help": "where unfinished runs are parked between sittings (None: "
+                f"{IN_PROGRESS.relative_to(IN_PROGRESS.parents[2])}; with another --results: <results>/in_progress)"})
+    refresh_curves: bool = dataclasses.field(default=False, metadata={
+        "help": "only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", "obs")
-    parser.add_argument("--recipe", default="reverse_bc", choices=list(RECIPES))
+    add_config_arguments(parser, Flags, overrides=False, names=["recipe"])
     harness.options(parser, "jobs", seeds=[0, 1], frames=1_000_000, runs=Path("runs/curriculum"),
                     helps={"frames": "online frames per seed (at most)", "jobs": "seeds trained at once"})
-    parser.add_argument("--max-minutes", type=float, default=None, help="stop each seed's training after this")
-    add_config_arguments(parser, ppo.PPOConfig, names=["workers", "device"], defaults={"workers": 1}, overrides=False,
-                         helps={"workers": "collector processes per seed (PPO; 1: collect in the training process, "
-                                           "as every committed run did; frames_per_batch 4000 must be a multiple)",
-                                "device": "where each seed's networks train (PPO): cpu, cuda or auto"})
+    add_config_arguments(parser, ppo.PPOConfig, names=["max_minutes", "workers", "device"], defaults={"workers": 1},
+                         overrides=False, helps={
+                             "max_minutes": "stop each seed's training after this (minutes)",
+                             "workers": "collector processes per seed (PPO; 1: collect in the training process, as "
+                                        "every committed run did; frames_per_batch 4000 must be a multiple)",
+                             "device": "where each seed's networks train (PPO): cpu, cuda or auto"})
     harness.options(parser, "eval_episodes", "note")
     harness.options(parser, results=RESULTS)
-    parser.add_argument("--students-only", action="store_true",
-                        help="a student recipe's distillation step alone (no RL), to <task>_cloud_student.json")
-    parser.add_argument("--committed", type=Path, default=None, help="where unfinished runs are parked between "
-                        f"sittings (default {IN_PROGRESS.relative_to(IN_PROGRESS.parents[2])}; with another --results: "
-                        "<results>/in_progress)")
+    add_config_arguments(parser, Flags, overrides=False, names=["students_only", "committed"])
     parser.add_argument("--no-committed", action="store_true",
                         help="never copy parked runs (--committed) into --runs, nor park any there")
-    parser.add_argument("--refresh-curves", action="store_true",
-                        help="only rewrite the JSON's per-batch curves from the runs' checkpoints (no training)")
+    add_config_arguments(parser, Flags, overrides=False, names=["refresh_curves"])
     args = parser.parse_args(argv)
     if args.refresh_curves:
         return refresh_curves(args.results / f"{args.task}_{args.obs}_{args.recipe}.json", Path(args.runs), args.note)

@@ -37,10 +37,12 @@ import argparse
 import json
 import math
 import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.evaluate import check_phase_seed, choose_headline, over_seeds
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -339,11 +341,18 @@ def stale_tables() -> list[str]:
     return stale
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    write: bool = field(default=False, metadata={"help": "replace the tables in their files"})
+    choices: bool = field(default=False, metadata={"help": "print the headline rule's choice per task and column (the "
+                          "--source of benchmarks/rl/final_evaluation.py) and nothing else"})
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--write", action="store_true", help="replace the tables in their files")
-    parser.add_argument("--choices", action="store_true", help="print the headline rule's choice per task and column "
-                        "(the --source of benchmarks/rl/final_evaluation.py) and nothing else")
+    add_config_arguments(parser, Flags, overrides=False)
     args = parser.parse_args(argv)
     if args.choices:
         for task in TASKS:

@@ -23,10 +23,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.utils import provenance, sibling_script, write_json
 
 harness = sibling_script(__file__, "_harness")
@@ -61,13 +63,21 @@ def label(result: dict) -> str:
     return f"{result['task']} {result['obs']} {result['recipe']} (reward {reward})"
 
 
+@dataclass
+class Flags:
+    """This script's own arguments; the shared ones come from the harness."""
+
+    runs: list[Path] = field(default_factory=list, metadata={"positional": True,
+                                                             "help": "curriculum_runs.py JSON files"})
+    keys: list[str] = field(default_factory=lambda: list(DEFAULT_KEYS), metadata={"help": "curve fields to compare"})
+    windows: list[int] = field(default_factory=lambda: [0, 300_000, 600_000, 1_000_000],
+                               metadata={"help": "frame boundaries of the table's windows"})
+    smooth: int = field(default=5, metadata={"min": 1, "help": "batches in the plotted running mean"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="curriculum_runs.py JSON files")
-    parser.add_argument("--keys", nargs="+", default=list(DEFAULT_KEYS), help="curve fields to compare")
-    parser.add_argument("--windows", nargs="+", type=int, default=[0, 300_000, 600_000, 1_000_000],
-                        help="frame boundaries of the table's windows")
-    parser.add_argument("--smooth", type=int, default=5, help="batches in the plotted running mean")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "png", "json")
     args = parser.parse_args(argv)
     if len(args.windows) < 2 or sorted(args.windows) != args.windows:

@@ -25,8 +25,10 @@ student's distillation included), and ``steps_in_all`` (their sum); command and 
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import (EPISODES_PER_OBJECT, TEST_SEEDS, by_template, evaluate_expert, over_seeds,
                                      protocol_evaluation, split_stats)
@@ -65,16 +67,24 @@ def expert_cell(task: str, episodes: int) -> dict:
     return out
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    column: str = field(default="expert", metadata={"choices": list(COLUMNS), "help": "the cell's column"})
+    checkpoints: list[str] = field(default_factory=list, metadata={"help": "SEED=CHECKPOINT per training seed (a file "
+                                   "or REV:path in git history); not for the expert"})
+    source: str | None = field(default=None, metadata={"help": "the candidate these checkpoints are, as the headline "
+                               "rule names it (`python benchmarks/rl/curriculum_table.py --choices` prints each "
+                               "task's); not for the expert"})
+    students: list[str] = field(default_factory=list, metadata={"help": "SEED=CHECKPOINT: the students the RL "
+                                "checkpoints started from, counted in the cell's demonstration steps (not evaluated)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", required=("task",))
-    parser.add_argument("--column", required=True, choices=COLUMNS)
-    parser.add_argument("--checkpoints", nargs="*", default=[], help="SEED=CHECKPOINT per training seed (a file or "
-                        "REV:path in git history); not for the expert")
-    parser.add_argument("--source", default=None, help="the candidate these checkpoints are, as the headline rule names "
-                        "it (`python benchmarks/rl/curriculum_table.py --choices` prints each task's); not for the expert")
-    parser.add_argument("--students", nargs="*", default=[], help="SEED=CHECKPOINT: the students the RL checkpoints "
-                        "started from, counted in the cell's demonstration steps (not evaluated)")
+    add_config_arguments(parser, Flags, overrides=False, required=("column",))
     harness.options(parser, eval_episodes=EPISODES_PER_OBJECT)
     harness.options(parser, "jobs")
     harness.options(parser, cache=Path("runs/final_evaluation"))

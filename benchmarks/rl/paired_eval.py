@@ -32,10 +32,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.checkpoint import load_checkpoint
 from dexart_lite.rl.evaluate import evaluate_many, split_stats
 from dexart_lite.utils import benchmark_results, fast_mode, provenance, save_figure, sibling_script, write_json
@@ -129,10 +131,17 @@ def plot(summary: list[dict], rows: list[dict], path: Path) -> Path:
     return save_figure(fig, path)
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    run_sets: list[str] | None = field(default=None, metadata={"help": "JSON stems under benchmarks/results/rl/"
+                                      "curriculum (None: every RL run set that starts from a student)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--run-sets", nargs="+", default=None, help="JSON stems under benchmarks/results/rl/"
-                        "curriculum (default: every RL run set that starts from a student)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, eval_episodes=10)
     harness.options(parser, "jobs", seed=1000, runs=Path("runs/curriculum"),
                     helps={"seed": "env seed of every evaluation: 1000, the held-out seed of bench_finetune.py, not "

@@ -24,10 +24,12 @@ machine.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make
 from dexart_lite.envs.rewards import REWARD_MODES
 from dexart_lite.experts import ScriptedPolicy
@@ -76,15 +78,22 @@ def summary(label: str, episodes: list[dict], checkpoint: str | None = None, fra
             "mean_bonus": mean([e["terms"].get("bonus", 0.0) for e in wins]), "terms": terms}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    policy: list[str] = field(default_factory=list, metadata={"help": "checkpoints to compare with the expert"})
+    expert_noise: float = field(default=0.1, metadata={"min": 0.0, "help": "the expert's executed-action noise std"})
+    reward: str = field(default="dexart", metadata={"help": f"the reward the episodes are scored on: one of "
+                                                            f"{', '.join(REWARD_MODES)}"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, task="faucet")
-    parser.add_argument("--policy", nargs="*", default=[], help="checkpoints to compare with the expert")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "split", episodes_per_object=5, seed=1000,
                     helps={"seed": "reset seeds: solve_episodes(seed)"})
-    parser.add_argument("--expert-noise", type=float, default=0.1, help="the expert's executed-action noise std")
-    parser.add_argument("--reward", default="dexart", help=f"the reward the episodes are scored on: one of "
-                        f"{', '.join(REWARD_MODES)}")
     harness.options(parser, "json")
     args = parser.parse_args(argv)
     check_choice("reward", args.reward, REWARD_MODES)

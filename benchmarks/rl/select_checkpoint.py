@@ -40,14 +40,17 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.evaluate import check_phase_seed, evaluate_many, split_stats
 from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
 
 harness = sibling_script(__file__, "_harness")
+sweep = sibling_script(__file__, "checkpoint_sweep")  # its SERIES=CHECKPOINT parsing and git checkouts
 
 SPLITS = ("seen", "unseen")
 
@@ -103,16 +106,22 @@ def plot(series: dict, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+@dataclass
+class Flags:
+    """This script's own arguments; the shared ones come from the harness."""
+
+    checkpoints: list[tuple] = field(default_factory=list, metadata={
+        "positional": True, "parse": sweep.parse_spec, "help": "SERIES=CHECKPOINT candidates (a file or REV:path)"})
+    start: list[tuple] = field(default_factory=list, metadata={
+        "parse": sweep.parse_spec, "help": "SERIES=CHECKPOINT each series started from (its student)"})
+    select_episodes: int = field(default=5, metadata={"help": "validation episodes per seen object"})
+    select_seed: int = field(default=100, metadata={"help": "env seed of the validation episodes (one of "
+                                                            "rl.evaluate.VALIDATION_SEEDS)"})
+
+
 def main(argv=None) -> dict:
-    sweep = sibling_script(__file__, "checkpoint_sweep")  # its SERIES=CHECKPOINT parsing and git checkouts
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("checkpoints", nargs="+", type=sweep.parse_spec,
-                        help="SERIES=CHECKPOINT candidates (a file or REV:path)")
-    parser.add_argument("--start", nargs="+", type=sweep.parse_spec, required=True,
-                        help="SERIES=CHECKPOINT each series started from (its student)")
-    parser.add_argument("--select-episodes", type=int, default=5, help="validation episodes per seen object")
-    parser.add_argument("--select-seed", type=int, default=100, help="env seed of the validation episodes (one of "
-                        "rl.evaluate.VALIDATION_SEEDS)")
+    add_config_arguments(parser, Flags, overrides=False, required=("start",))
     harness.options(parser, eval_episodes=10, helps={"eval_episodes": "held-out episodes per seen and unseen object"})
     harness.options(parser, "jobs", seed=1000, helps={"seed": "env seed of the held-out evaluation"})
     harness.options(parser, "json", cache=Path("runs/checkpoint_sweep"), required=("json",))

@@ -30,6 +30,7 @@ import argparse
 import functools
 import json
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -37,6 +38,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.ppo import PRESETS, PPOConfig  # noqa: E402
 from dexart_lite.utils import (benchmark_results, fast_mode, parse_overrides, provenance, save_figure,  # noqa: E402
                                sibling_script, write_json)
@@ -134,12 +136,19 @@ def state_run(frames: int, eval_episodes: int, preset: str, results: Path, task:
     return summarise_run(summary, seed, read_back=False)
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    preset: str = field(default="cpu", metadata={"choices": list(SETTINGS), "help": "cpu: DexArt's PPO with the "
+                        "departures above; fast: plus the input normalisation; fast_sil: plus self-imitation learning; "
+                        "fast_synergy: fast with the 3-synergy hand"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "tasks", seeds=[0, 1], frames=300_000, eval_episodes=2)
-    parser.add_argument("--preset", default="cpu", choices=list(SETTINGS),
-                        help="cpu: DexArt's PPO with the departures above; fast: plus the input normalisation; "
-                             "fast_sil: plus self-imitation learning; fast_synergy: fast with the 3-synergy hand")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, json=RESULTS / "state_diagnostic.json")
     args = parser.parse_args(argv)
     start = time.perf_counter()

@@ -32,12 +32,14 @@ from __future__ import annotations
 
 import argparse
 import functools
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import torch
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.rl.curriculum import GuidedStart, find_demos, make_guide
 from dexart_lite.rollout import NOISE_PARTS, noisy, run_episodes
 from dexart_lite.utils import provenance, save_figure, sibling_script, write_json
@@ -116,17 +118,26 @@ def plot(result: dict, path: Path) -> None:
     save_figure(fig, path)
 
 
+@dataclass
+class Flags:
+    """This script's own flags but --policy (repeated, one policy each); the shared ones come from the harness."""
+
+    h: list[int] = field(default_factory=lambda: [0, 50, 100, 125, 140, 155, 170],
+                         metadata={"help": "guide steps before the hand-over, one run each"})
+    noise: list[float] = field(default_factory=lambda: [0.0], metadata={
+        "help": "std(s) of executed-action noise after the hand-over; every policy at each"})
+    noise_on: str = field(default="all", metadata={"choices": list(NOISE_PARTS), "help": "the action part the noise "
+                          "perturbs: all, arm (palm twist) or hand (joint targets)"})
+    demos: int = field(default=11, metadata={"min": 1, "help": "demonstrations (one per seen object by default)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, task="bucket")
+    # by hand: repeated (--policy a=x --policy b=y), which a list field's one-or-more values cannot spell
     parser.add_argument("--policy", type=parse_policy, action="append", required=True,
                         help="label=checkpoint, or expert; repeat for several")
-    parser.add_argument("--h", type=int, nargs="+", default=[0, 50, 100, 125, 140, 155, 170])
-    parser.add_argument("--noise", type=float, nargs="+", default=[0.0],
-                        help="std(s) of executed-action noise after the hand-over; every policy at each")
-    parser.add_argument("--noise-on", default="all", choices=list(NOISE_PARTS),
-                        help="the action part the noise perturbs: all, arm (palm twist) or hand (joint targets)")
-    parser.add_argument("--demos", type=int, default=11, help="demonstrations (one per seen object by default)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "seed", "jobs", "json", "png", helps={"seed": "the demonstrations' solve seed"})
     args = parser.parse_args(argv)
     if min(args.h) < 0:

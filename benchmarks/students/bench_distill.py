@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -52,15 +53,23 @@ def run_seed(cfg: DistillConfig) -> dict:
     return {"seed": cfg.seed, **result}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    variant: str = field(default="", metadata={"help": "a name for --set, in the run folders "
+                                                       "(distill_<task>_<method>_<variant>_s<seed>)"})
+    collect: list[Path] | None = field(default=None, metadata={"help": "summarise these finished `dexart-lite distill` "
+                                       "folders instead of running seeds"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_config_arguments(parser, DistillConfig, names=["task", "method", "encoder"])  # and --set FIELD=VALUE ...
     harness.options(parser, "runs", seeds=[0, 1, 2], jobs=1,
                     helps={"jobs": "seeds at once (1: each seed alone, so its wall_time_s is its own)"})
-    parser.add_argument("--variant", default="", help="a name for --set, in the run folders (distill_<task>_<method>_<variant>_s<seed>)")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, helps={"json": "default benchmarks/results/students/distill_<task>.json"}, json=None)
-    parser.add_argument("--collect", type=Path, nargs="+", metavar="RUN_DIR",
-                        help="summarise these finished `dexart-lite distill` folders instead of running seeds")
     args = parser.parse_args(argv)
     if args.collect:
         return collect(args, argv)

@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite import objects as objects_lib
 from dexart_lite.imitation.distill import DistillConfig
 from dexart_lite.study import run_arm
@@ -80,10 +82,18 @@ def distil(cfg: DistillConfig, prob: float) -> dict:
             "wall_time_s": round(result["wall_time_s"], 1)}
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    prob: float = field(default=0.5, metadata={"min": 0.0,
+                                               "help": "probability that a training episode hides the tank"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, seeds=[0, 1])
-    parser.add_argument("--prob", type=float, default=0.5, help="probability that a training episode hides the tank")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "jobs", runs=Path("runs/curriculum"), json=RESULTS / "distill_toilet_notank.json",
                     helps={"jobs": "seeds distilled at once (one torch thread each if > 1)"})
     args = parser.parse_args(argv)

@@ -27,10 +27,12 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make
 from dexart_lite.demos import episode_list
 from dexart_lite.models.pointnet import PointNetEncoder
@@ -111,14 +113,22 @@ def probe(variant: str, train: dict, tests: dict[str, dict], centre: torch.Tenso
     return result
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    test_episodes_per_object: int = field(default=1, metadata={"min": 1, "help": "test episodes per object and split"})
+    noise: float = field(default=0.3, metadata={"min": 0.0, "help": "std of the expert's executed-action noise"})
+    variants: list[str] = field(default_factory=lambda: list(VARIANTS),
+                                metadata={"choices": list(VARIANTS), "help": "the probe variants, one probe each"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", "episodes_per_object",
                     helps={"episodes_per_object": "training episodes per seen object"})
-    parser.add_argument("--test-episodes-per-object", type=int, default=1, help="test episodes per object and split")
-    parser.add_argument("--noise", type=float, default=0.3, help="std of the expert's executed-action noise")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, epochs=20)
-    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
     harness.options(parser, "seed", "json")
     args = parser.parse_args(argv)
     torch.set_num_threads(2)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -84,6 +85,14 @@ def fit(student: StateStudent, inputs: list, labels: list, steps: int, optimizer
     return float(loss)
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the student's settings come from DistillConfig, the shared ones from the harness."""
+
+    steps: int = field(default=3000, metadata={"min": 1,
+                                               "help": "Adam steps (batch 256) after the demos and each round"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     # the DAgger settings are distill's own fields, with its defaults
@@ -91,7 +100,7 @@ def main(argv=None) -> dict:
                                                        "episodes_per_round", "beta", "beta_decay", "beta_min",
                                                        "drop_failed"], overrides=False)
     harness.options(parser, "seed")
-    parser.add_argument("--steps", type=int, default=3000, help="Adam steps (batch 256) after the demos and each round")
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "json", eval_episodes=2)
     args = parser.parse_args(argv)
     steps_per_episode = None

@@ -27,10 +27,12 @@ from __future__ import annotations
 import argparse
 import time
 from collections import Counter
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.envs import make
 from dexart_lite.experts import ScriptedPolicy
 from dexart_lite.experts.solve import solve_episodes
@@ -109,9 +111,16 @@ def run_student(run: Path, split: str, sigma: float, episodes_per_object: int, s
             "wall_time_s": round(time.perf_counter() - start, 1)}
 
 
+@dataclass
+class Flags:
+    """This script's own flag; the shared ones come from the harness."""
+
+    runs: list[Path] = field(default_factory=list, metadata={"help": "distill folders (checkpoint.pt)"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=Path, nargs="+", required=True, help="distill folders (checkpoint.pt)")
+    add_config_arguments(parser, Flags, overrides=False, required=("runs",))
     harness.options(parser, "splits")
     harness.options(parser, "sigmas")
     harness.options(parser, episodes_per_object=2, seed=200, helps={"seed": "evaluation seeds (not the training ones)"})

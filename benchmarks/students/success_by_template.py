@@ -25,16 +25,31 @@ import argparse
 import json
 import re
 from collections import defaultdict
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from dexart_lite import objects as objects_lib
+from dexart_lite.cli import add_config_arguments
 from dexart_lite.utils import provenance, sibling_script, write_json
 
 harness = sibling_script(__file__, "_harness")
 
 SPLITS = ("seen", "unseen")
+
+
+@dataclass
+class Flags:
+    """This script's own flags (``--runs``, ``--eval``, ``--evaluate``); the shared ones come from the harness."""
+
+    runs: list[Path] = field(default_factory=list, metadata={"help": "finished run folders (one per seed)"})
+    eval: str = field(default="eval_{split}.json",
+                      metadata={"help": "the evaluation file in each run folder, {split} for seen / unseen"})
+    evaluate: bool = field(default=False, metadata={
+        "help": "with --eval heldout_{split}_e<N>_seed<S>.json: first evaluate each run's checkpoint.pt where that "
+                "file is missing (rl.evaluate.evaluate_many: N deterministic episodes per object from the true "
+                "reset, env seed S), --jobs at a time"})
 
 
 def read_run(run: Path, pattern: str = "eval_{split}.json") -> dict[str, dict]:
@@ -87,13 +102,8 @@ def by_template(runs: list[Path], pattern: str = "eval_{split}.json") -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=Path, nargs="+", required=True, help="finished run folders (one per seed)")
-    parser.add_argument("--eval", default="eval_{split}.json",
-                        help="the evaluation file in each run folder, {split} for seen / unseen")
+    add_config_arguments(parser, Flags, overrides=False, required=("runs",))
     harness.options(parser, "json", helps={"json": "where to write the result (default: print only)"})
-    parser.add_argument("--evaluate", action="store_true", help="with --eval heldout_{split}_e<N>_seed<S>.json: "
-                        "first evaluate each run's checkpoint.pt where that file is missing (rl.evaluate.evaluate_many: "
-                        "N deterministic episodes per object from the true reset, env seed S), --jobs at a time")
     harness.options(parser, "jobs", helps={"jobs": "with --evaluate: evaluations side by side (processes)"})
     args = parser.parse_args(argv)
     if "{split}" not in args.eval:

@@ -29,10 +29,12 @@ from __future__ import annotations
 
 import argparse
 import functools
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite import objects as objects_lib
 from dexart_lite import pointcloud as pc
 from dexart_lite.articulated import PART_LINK
@@ -107,11 +109,18 @@ def evaluate(ckpt: str, split: str, condition: str, episodes: int, seed: int) ->
             "dropped_share": float(np.mean(dropped)) if dropped else 0.0, "templates": by_template}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    ckpts: list[str] = field(default_factory=list, metadata={"help": "toilet checkpoints (distill or PPO)"})
+    episodes: int = field(default=5, metadata={"min": 1, "help": "episodes per object and condition"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ckpts", nargs="+", required=True, help="toilet checkpoints (distill or PPO)")
+    add_config_arguments(parser, Flags, overrides=False, required=("ckpts",))
     harness.options(parser, "split")
-    parser.add_argument("--episodes", type=int, default=5, help="episodes per object and condition")
     harness.options(parser, "jobs", seed=1000, json=benchmark_results(__file__) / "tank_ablation_toilet.json",
                     helps={"seed": "env seed (both conditions)"})
     args = parser.parse_args(argv)

@@ -18,8 +18,10 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from dexart_lite.cli import add_config_arguments
 from dexart_lite import zoo
 from dexart_lite.rl.checkpoint import REQUIRED, load_checkpoint, save_checkpoint
 from dexart_lite.rl.evaluate import evaluate_checkpoint
@@ -68,17 +70,24 @@ def measure(task: str, path: Path, episodes: int, seed: int, training: dict | No
             "eval_episodes_per_object": episodes, "eval_seed": seed}
 
 
+@dataclass
+class Flags:
+    """This script's own flags; the shared ones come from the harness."""
+
+    policy: list[str] = field(default_factory=list, metadata={"help": "TASK=CHECKPOINT, the policies to ship"})
+    source: list[str] = field(default_factory=list, metadata={"help": "TASK=JSON: the results JSON of the run each "
+                              "checkpoint comes from (its command and machine)"})
+    training_command: list[str] = field(default_factory=list, metadata={"help": "TASK=COMMAND: the command that "
+                                        "trained a policy, where its --source records only the step that collected "
+                                        "finished runs into it (bench_distill.py --collect)"})
+    zoo: Path = field(default=zoo.FOLDER, metadata={"help": "where the checkpoints and manifest go"})
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--policy", nargs="+", required=True, metavar="TASK=CHECKPOINT")
-    parser.add_argument("--source", nargs="*", default=[], metavar="TASK=JSON",
-                        help="the results JSON of the run each checkpoint comes from (its command and machine)")
-    parser.add_argument("--training-command", nargs="*", default=[], metavar="TASK=COMMAND",
-                        help="the command that trained a policy, where its --source records only the step that "
-                             "collected finished runs into it (bench_distill.py --collect)")
+    add_config_arguments(parser, Flags, overrides=False, required=("policy",))
     harness.options(parser, eval_episodes=3)
     harness.options(parser, seed=100, helps={"seed": "evaluation env seed (as dexart-lite eval)"})
-    parser.add_argument("--zoo", type=Path, default=zoo.FOLDER, help="where the checkpoints and manifest go")
     harness.options(parser, "note", json=RESULTS,
                     helps={"note": "a line stored with each policy of this call (which run, why)"})
     args = parser.parse_args(argv)

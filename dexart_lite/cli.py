@@ -79,7 +79,7 @@ def add_config_arguments(parser, config_cls, *, names: list[str] | None = None, 
         kind = f.metadata.get("parse") or (typing.get_args(kinds[0])[0] if many else kinds[0])
         if "min" in f.metadata:
             kind = _at_least(kind, f.metadata["min"])
-        if f.metadata.get("positional"):  # a positional argument is required, unless it has a default
+        if f.metadata.get("positional"):  # always given on the command line (a list: one or more values)
             parser.add_argument(f.name, type=kind, help=help_text, choices=choices,
                                 **({"nargs": "+"} if many else {}))
             continue

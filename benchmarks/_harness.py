@@ -32,7 +32,8 @@ from dexart_lite.objects import SPLITS
 class Options:
     """The flags the benchmark scripts share, one meaning each; a script takes those it needs with ``options``.
     Settings of a learner or an env are not here: a script takes those from its config dataclass
-    (``add_config_arguments(parser, DistillConfig, names=[...])``)."""
+    (``add_config_arguments(parser, DistillConfig, names=[...])``), and its own flags from a ``Flags`` dataclass
+    beside its ``main`` (``add_config_arguments(parser, Flags, overrides=False)``)."""
 
     task: str = field(default="laptop", metadata={"help": "the task", "choices": TASKS})
     tasks: list[str] = field(default_factory=lambda: list(TASKS), metadata={"help": "the tasks", "choices": TASKS})

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import tempfile
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -54,15 +53,16 @@ def summary(history: list[dict], skip: int) -> dict:
             "fps": float(np.mean([row["fps"] for row in history[1:]] or [history[0]["fps"]]))}
 
 
-@dataclass
+@dataclasses.dataclass
 class Flags:
     """This script's own flags (its --jobs means the arms side by side, not the harness's runs at once)."""
 
-    batches: int = field(default=16, metadata={"min": 1, "help": "PPO batches of 4,000 frames per arm"})
-    skip: int = field(default=3, metadata={"min": 0, "help": "batches left out of the growth's fit (start-up)"})
-    jobs: int = field(default=2, metadata={"choices": [1, 2], "help": "2: the arms side by side in two processes (the "
-                      "figures); 1: one after the other in this process (a smoke run: the second arm's memory starts "
-                      "from the first's)"})
+    batches: int = dataclasses.field(default=16, metadata={"min": 1, "help": "PPO batches of 4,000 frames per arm"})
+    skip: int = dataclasses.field(default=3, metadata={"min": 0,
+                                                       "help": "batches left out of the growth's fit (start-up)"})
+    jobs: int = dataclasses.field(default=2, metadata={
+        "choices": [1, 2], "help": "2: the arms side by side in two processes (the figures); 1: one after the other "
+                                   "in this process (a smoke run: the second arm's memory starts from the first's)"})
 
 
 def main(argv: list[str] | None = None) -> dict:

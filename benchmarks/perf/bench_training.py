@@ -373,11 +373,10 @@ class Flags:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", frames=4000, helps={"frames": "timed frames per collection variant and round"})
-    add_config_arguments(parser, Flags, overrides=False, names=["collector_batch", "reps", "iteration_batches"])
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "rounds", "ref", helps={"rounds": "rounds of the collection variants (median)",
                                                     "ref": "an earlier commit whose whole cpu-preset iteration is "
                                                            "measured side by side"})
-    add_config_arguments(parser, Flags, overrides=False, names=["ref_rounds", "physics", "only_physics"])
     harness.options(parser, "json")
     args = parser.parse_args(argv)
     if args.physics:

@@ -530,7 +530,7 @@ class Flags:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.options(parser, "task", "obs")
-    add_config_arguments(parser, Flags, overrides=False, names=["recipe"])
+    add_config_arguments(parser, Flags, overrides=False)
     harness.options(parser, "jobs", seeds=[0, 1], frames=1_000_000, runs=Path("runs/curriculum"),
                     helps={"frames": "online frames per seed (at most)", "jobs": "seeds trained at once"})
     add_config_arguments(parser, ppo.PPOConfig, names=["max_minutes", "workers", "device"], defaults={"workers": 1},
@@ -541,10 +541,8 @@ def main(argv=None) -> dict:
                              "device": "where each seed's networks train (PPO): cpu, cuda or auto"})
     harness.options(parser, "eval_episodes", "note")
     harness.options(parser, results=RESULTS)
-    add_config_arguments(parser, Flags, overrides=False, names=["students_only", "committed"])
     parser.add_argument("--no-committed", action="store_true",
                         help="never copy parked runs (--committed) into --runs, nor park any there")
-    add_config_arguments(parser, Flags, overrides=False, names=["refresh_curves"])
     args = parser.parse_args(argv)
     if args.refresh_curves:
         return refresh_curves(args.results / f"{args.task}_{args.obs}_{args.recipe}.json", Path(args.runs), args.note)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import shutil
 from functools import partial
 from pathlib import Path
@@ -423,10 +424,17 @@ def test_parking_keeps_only_what_continues_an_unfinished_run_and_deletes_a_finis
     student = run("t_cloud_student_s0", 0, None)  # a student's config has no frames
     (runs / "t_cloud_student_s0" / "eval_seen.json").write_text("{}")
     rl = run("t_cloud_r_s0", 400, 1000, init_from=str(runs / "t_cloud_student_s0" / "checkpoint.pt"))
+    # held-out evaluations (evaluate_many's cache): the student's of its checkpoint is kept; the RL run's is older
+    # than its checkpoint (it was trained on since), so it measured another policy and stays behind
+    (runs / "t_cloud_student_s0" / "heldout_seen_e10_seed1000.json").write_text("{}")
+    stale = runs / "t_cloud_r_s0" / "heldout_seen_e10_seed1000.json"
+    stale.write_text("{}")
+    weights = (runs / "t_cloud_r_s0" / "checkpoint.pt").stat().st_mtime
+    os.utime(stale, (weights - 60, weights - 60))
     assert bench.park([rl], [student], committed) == ["t_cloud_r_s0", "t_cloud_student_s0"]
     assert sorted(p.name for p in (committed / "t_cloud_r_s0").iterdir()) == ["checkpoint.pt", "run.json"]
     assert sorted(p.name for p in (committed / "t_cloud_student_s0").iterdir()) == [
-        "checkpoint.pt", "eval_seen.json", "run.json"]
+        "checkpoint.pt", "eval_seen.json", "heldout_seen_e10_seed1000.json", "run.json"]
     # the run finishes in a later sitting: nothing of it, or of its student, stays parked
     (runs / "t_cloud_r_s0" / "run.json").write_text(json.dumps({"frames": 1000, "config": {"frames": 1000}}))
     assert bench.park([rl], [student], committed) == []

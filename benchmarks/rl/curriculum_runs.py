@@ -21,8 +21,9 @@ continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-se
     seen_success / unseen_success (means over the seeds), eval_episodes_per_object, command, machine.
 
 Runs that span several sittings: at the end of every call each seed stopped short of ``--frames`` (``--max-minutes``)
-is parked in ``benchmarks/results/in_progress/<run>`` (``--committed``): its last checkpoint and ``run.json``, and
-its student's, nothing else (no logs, no demonstrations), to be committed; a finished seed's folder there is
+is parked in ``benchmarks/results/in_progress/<run>`` (``--committed``): its last checkpoint, ``run.json`` and the
+held-out evaluations of that checkpoint (``heldout_*.json``), and its student's, nothing else (no logs, no
+demonstrations), to be committed; a finished seed's folder there is
 deleted. A parked run whose folder ``--runs`` lacks is copied there first, and so continued
 (``--no-committed``: never read from or written to that folder).
 
@@ -460,6 +461,7 @@ def adopt_committed(out: Path, committed: Path) -> bool:
 
 
 # what a parked run keeps: enough to continue (PPO, SAC) or to be read back (a student), nothing that can be made again
+# cheaply; ``park`` adds the checkpoint's own held-out evaluations (heldout_*.json)
 PARKED_FILES = ("run.json", "checkpoint.pt", "eval_seen.json", "eval_unseen.json", "report.md")
 
 
@@ -476,6 +478,12 @@ def park(cfgs: list, students: list, committed: Path) -> list[str]:
         for name in PARKED_FILES:
             if (folder / name).is_file():
                 shutil.copy2(folder / name, target / name)
+        # the held-out evaluations of this very checkpoint (``rl.evaluate.evaluate_many``'s cache, written after it),
+        # so that paired_eval.py reads a parked student's back in the next sitting instead of evaluating it again
+        checkpoint = folder / "checkpoint.pt"
+        for cache in folder.glob("heldout_*.json") if checkpoint.is_file() else ():
+            if cache.stat().st_mtime >= checkpoint.stat().st_mtime:
+                shutil.copy2(cache, target / cache.name)
 
     for cfg, student in zip(cfgs, students):
         out = Path(cfg.out)

@@ -23,9 +23,8 @@ continued or read back by ``dexart_lite.study.run_arm`` (the rule every multi-se
 Runs that span several sittings: at the end of every call each seed stopped short of ``--frames`` (``--max-minutes``)
 is parked in ``benchmarks/results/in_progress/<run>`` (``--committed``): its last checkpoint, ``run.json`` and the
 held-out evaluations of that checkpoint (``heldout_*.json``), and its student's, nothing else (no logs, no
-demonstrations), to be committed; a finished seed's folder there is
-deleted. A parked run whose folder ``--runs`` lacks is copied there first, and so continued
-(``--no-committed``: never read from or written to that folder).
+demonstrations), to be committed; a finished seed's folder there is deleted. A parked run whose folder ``--runs``
+lacks is copied there first, and so continued (``--no-committed``: never read from or written to that folder).
 
 ``--students-only`` (student recipes) distils the students alone and writes ``<task>_cloud_student.json`` (a recipe
 from a student variant: ``<task>_cloud_student_<variant>.json``, ``STUDENT_VARIANTS``): task,

@@ -51,6 +51,7 @@ import torch
 from dexart_lite.objects import list_objects
 from dexart_lite.imitation.distill import CHECKPOINT, DistillConfig
 from dexart_lite.rl import ppo, recipes
+from dexart_lite.rl.evaluate import heldout_current
 from dexart_lite.rl.learners import LEARNERS, learner_name
 from dexart_lite.study import run_arm
 from dexart_lite.cli import add_config_arguments
@@ -481,7 +482,7 @@ def park(cfgs: list, students: list, committed: Path) -> list[str]:
         # so that paired_eval.py reads a parked student's back in the next sitting instead of evaluating it again
         checkpoint = folder / "checkpoint.pt"
         for cache in folder.glob("heldout_*.json") if checkpoint.is_file() else ():
-            if cache.stat().st_mtime >= checkpoint.stat().st_mtime:
+            if heldout_current(cache, checkpoint):
                 shutil.copy2(cache, target / cache.name)
 
     for cfg, student in zip(cfgs, students):

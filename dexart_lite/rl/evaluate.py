@@ -157,6 +157,12 @@ def heldout_path(checkpoint: str | Path, split: str, episodes_per_object: int, s
     return Path(checkpoint).parent / f"heldout_{split}_e{episodes_per_object}_seed{seed}.json"
 
 
+def heldout_current(cache: Path, checkpoint: Path) -> bool:
+    """Whether a cached evaluation (``heldout_path``) still measures ``checkpoint``: it exists and is not older than
+    the checkpoint (one trained on since is evaluated again)."""
+    return cache.exists() and not (checkpoint.exists() and checkpoint.stat().st_mtime > cache.stat().st_mtime)
+
+
 def split_stats(result: dict) -> dict:
     """Success, its standard error and success per object, of one ``evaluate`` result. Every object gets the same k
     episodes, so the se is stratified by object: sqrt(sum_o p_o (1 - p_o) / k) / n_objects."""
@@ -176,11 +182,7 @@ def evaluate_many(work: list[tuple[str, str]], episodes_per_object: int, seed: i
     from tqdm import tqdm
 
     work = list(dict.fromkeys((str(c), s) for c, s in work))
-    def cached(c: str, s: str) -> bool:  # a cache older than its checkpoint (trained on since) is evaluated again
-        cache, checkpoint = heldout_path(c, s, episodes_per_object, seed), Path(c)
-        return cache.exists() and not (checkpoint.exists() and checkpoint.stat().st_mtime > cache.stat().st_mtime)
-
-    todo = [(c, s) for c, s in work if not cached(c, s)]
+    todo = [(c, s) for c, s in work if not heldout_current(heldout_path(c, s, episodes_per_object, seed), Path(c))]
     bar = tqdm(total=len(todo), desc="evaluations", unit="eval", disable=not todo)
     if jobs <= 1:
         for c, s in todo:

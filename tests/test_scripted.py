@@ -313,6 +313,18 @@ def test_bucket_failure_classes_read_the_bail_angle(load_benchmark):
     assert classify(low) == {"failure": "other", "phase": "raise"}
 
 
+def test_bucket_failure_regrasps_and_lift_swing_read_the_phase_trace(load_benchmark):
+    """bucket_expert_failures.py: a regrasp is each entry into ``approach`` from another phase, and the lift's
+    swing is the range of q over the first run of ``lift`` steps only."""
+    bench = load_benchmark("bucket_expert_failures")
+    phases = ["approach", "descend", "close", "approach", "descend", "close", "raise", "lift", "lift", "approach"]
+    assert bench.regrasps_from(phases) == ["close", "lift"]
+    trace = [("raise", -0.9, 0.0), ("lift", -0.5, 0.0), ("lift", 0.3, 0.0), ("lift", -0.2, 0.0),
+             ("approach", 1.5, 0.0), ("lift", -1.5, 0.0)]
+    assert bench.lift_swing(trace) == pytest.approx(0.8)
+    assert bench.lift_swing([("raise", -0.9, 0.0)]) is None
+
+
 def test_bucket_failure_benchmark_replays_the_noise_curve_episodes(monkeypatch, load_benchmark):
     """In fast mode (one episode of the first seen bucket) the success equals ``solve``'s at the same
     noise and seed: the same resets and noise draws as benchmarks/experts/exploration_noise.py."""

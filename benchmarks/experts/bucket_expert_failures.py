@@ -20,7 +20,10 @@ lying on the far side) and the body's height over its reset height (m). A failed
 
 Also reported per episode: the highest lift of the body over its reset height and the body's height
 change over the first 20 steps, before the hand arrives (DexArt's reset puts the bucket up to 5 cm above its
-nominal height, and it settles). Writes the JSON (per episode, counts per split) and prints a table.
+nominal height, and it settles); ``regrasps_from``: the phases the expert left for a new approach (its
+closed loop's "lost the tube" decisions, in order); and ``lift_swing_rad``: the range (max - min) of q over
+the steps of its first lift phase, where the bucket, held by the bail's tube, swings on the frictionless
+pivot (None: never lifted). Writes the JSON (per episode, counts per split) and prints a table.
 """
 
 from __future__ import annotations
@@ -58,6 +61,22 @@ def classify(trace: list[tuple[str, float, float]]) -> dict:
     return {"failure": "other", "phase": phases[-1]}
 
 
+def regrasps_from(phases: list[str]) -> list[str]:
+    """The phases left for ``approach`` (each a regrasp), in order."""
+    return [a for a, b in zip(phases, phases[1:]) if b == "approach" and a != "approach"]
+
+
+def lift_swing(trace: list[tuple[str, float, float]]) -> float | None:
+    """Range of q (rad) over the first run of ``lift`` steps; None if the expert never lifted."""
+    phases = [p for p, _, _ in trace]
+    if "lift" not in phases:
+        return None
+    start = phases.index("lift")
+    stop = next((i for i in range(start, len(phases)) if phases[i] != "lift"), len(phases))
+    q = [v for _, v, _ in trace[start:stop]]
+    return float(max(q) - min(q))
+
+
 def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, object_names=None,
               expert_name: str | None = None) -> list[dict]:
     env = make("bucket", split=split, object_names=object_names, num_points=32)
@@ -82,7 +101,8 @@ def run_split(split: str, sigma: float, episodes_per_object: int, seed: int, obj
         heights = np.array([h for _, _, h in trace])
         row = {"object": episode["object"], "seed": episode["seed"], "success": episode["success"],
                "max_q": float(max(q for _, q, _ in trace)), "max_lift_m": float(heights.max()),
-               "settle_m": float(heights[min(SETTLE_STEPS, len(heights)) - 1])}
+               "settle_m": float(heights[min(SETTLE_STEPS, len(heights)) - 1]),
+               "regrasps_from": regrasps_from([p for p, _, _ in trace]), "lift_swing_rad": lift_swing(trace)}
         if not episode["success"]:
             row.update(classify(trace))
         rows.append(row)
@@ -109,8 +129,8 @@ def main(argv=None) -> dict:
               "seed": args.seed, "episodes_per_object": args.episodes_per_object,
               "thresholds_rad": {"flung": FLUNG, "raised": RAISED, "fell": FELL}, "splits": {}}
     print("| split | episodes | success | failed: flung over (phase) | fell back | other (last phase) | "
-          "body settle, first 20 steps |")
-    print("|---|---|---|---|---|---|---|")
+          "body settle, first 20 steps | failed: regrasps from | lift swing of q, median: success / failed |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for split in args.splits:
         names = [list_objects("bucket", split)[0].name] if fast_mode() else None
         rows = run_split(split, args.sigma, args.episodes_per_object, args.seed, names, args.expert)
@@ -118,14 +138,22 @@ def main(argv=None) -> dict:
         counts = Counter(r["failure"] for r in failed)
         by_phase = {kind: dict(Counter(r["phase"] for r in failed if r["failure"] == kind)) for kind in counts}
         settle = np.array([r["settle_m"] for r in rows])
+        lost = Counter(phase for r in failed for phase in r["regrasps_from"])
+        swing = {outcome: [r["lift_swing_rad"] for r in rows if r["success"] == ok and r["lift_swing_rad"] is not None]
+                 for outcome, ok in (("success", True), ("failed", False))}
         result["splits"][split] = {"episodes": len(rows), "success_rate": float(np.mean([r["success"] for r in rows])),
                                    "failures": dict(counts), "failures_by_phase": by_phase,
+                                   "failed_regrasps_from": dict(lost),
+                                   "failed_lifted": sum(r["lift_swing_rad"] is not None for r in failed),
+                                   "lift_swing_rad_median": {k: float(np.median(v)) if v else None
+                                                             for k, v in swing.items()},
                                    "settle_m": {"min": float(settle.min()), "max": float(settle.max())},
                                    "per_episode": rows}
         s = result["splits"][split]
         print(f"| {split} | {len(rows)} | {s['success_rate']:.2f} | {counts.get('flung over', 0)} "
               f"{by_phase.get('flung over', {})} | {counts.get('fell back', 0)} | {counts.get('other', 0)} "
-              f"{by_phase.get('other', {})} | {settle.min() * 100:.1f} to {settle.max() * 100:.1f} cm |")
+              f"{by_phase.get('other', {})} | {settle.min() * 100:.1f} to {settle.max() * 100:.1f} cm | "
+              f"{dict(lost)} | {s['lift_swing_rad_median']['success']} / {s['lift_swing_rad_median']['failed']} |")
     result.update(provenance(__file__, argv))
     if args.json:
         write_json(args.json, result)

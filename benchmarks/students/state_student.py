@@ -82,7 +82,7 @@ def fit(student: StateStudent, inputs: list, labels: list, steps: int, optimizer
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
-    return float(loss)
+    return float(loss.detach())  # the last batch's MSE
 
 
 @dataclass

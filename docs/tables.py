@@ -162,10 +162,11 @@ HOOK_NOISELESS = "0.91 / 1.00 (solve, seed 0)"
 
 
 def bucket_expert_noise() -> str:
-    """``exploration_noise_bucket.json`` (overhand, 3 seeds) and ``exploration_noise_bucket_seeds34.json`` (the same
-    expert at std 0.1 on two more seeds, pooled with the first file's seeds), ``exploration_noise_bucket_turnlift.json`` (the
-    overhand expert before its lift closed the thumb first, 3 seeds), ``exploration_noise_bucket_{arm,hand}.json``
-    (std 0.3 on one part of the action, seed 0) and ``exploration_noise_bucket_hook.json`` (seed 0)."""
+    """``exploration_noise_bucket.json`` (overhand, 3 seeds) and ``exploration_noise_bucket_seeds34.json`` (the
+    same expert at std 0.1 on two more seeds, pooled with the first file's seeds),
+    ``exploration_noise_bucket_turnlift.json`` (the overhand expert before its lift closed the thumb first, 3 seeds),
+    ``exploration_noise_bucket_{arm,hand}.json`` (std 0.3 on one part of the action, seed 0) and
+    ``exploration_noise_bucket_hook.json`` (seed 0)."""
     overhand, turned = "experts/exploration_noise_bucket.json", "experts/exploration_noise_bucket_turnlift.json"
     hook, more = "experts/exploration_noise_bucket_hook.json", "experts/exploration_noise_bucket_seeds34.json"
     rows = [[f"overhand ({link(overhand)})", noise_cell(load(overhand), 0.0), noise_cell(load(overhand), 0.1),

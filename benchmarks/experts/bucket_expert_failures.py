@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 from dataclasses import dataclass, field
+from itertools import takewhile
 
 import numpy as np
 
@@ -71,9 +72,7 @@ def lift_swing(trace: list[tuple[str, float, float]]) -> float | None:
     phases = [p for p, _, _ in trace]
     if "lift" not in phases:
         return None
-    start = phases.index("lift")
-    stop = next((i for i in range(start, len(phases)) if phases[i] != "lift"), len(phases))
-    q = [v for _, v, _ in trace[start:stop]]
+    q = [v for _, v, _ in takewhile(lambda step: step[0] == "lift", trace[phases.index("lift"):])]
     return float(max(q) - min(q))
 
 

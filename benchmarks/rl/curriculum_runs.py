@@ -270,6 +270,12 @@ RECIPES["student_wide_anchored_floor_reverse_d34_std05"] = {
 # ... and from the wide2x students
 RECIPES["student_wide2x_anchored_floor_reverse_d34_std05"] = {
     **RECIPES["student_wide_anchored_floor_reverse_d34_std05"], "student": "wide2x"}
+# student_wide_anchored_floor_reverse_d17_std05: the wide students with PPO on the 17 seen toilets alone (the successonly
+# recipe's split and one reverse-curriculum demonstration per seen toilet). The wide students open 0.26 of template C
+# but 0.59 of the seen toilets against successonly's 0.64, and PPO on seen + wide lost seen toilets further (0.54 at
+# ~818k): here every RL frame goes to a seen toilet, while the anchor's floor keeps the policy near the student
+RECIPES["student_wide_anchored_floor_reverse_d17_std05"] = {
+    **RECIPES["student_successonly_anchored_floor_reverse_d17_std05"], "student": "wide"}
 # the faucets' and laptops' headline point-cloud recipes from successonly students: their DAgger collections succeed
 # 0.68-0.89 in the last rounds (toilets: 0.51-0.74, where the filter lifted the students from 0.47 / 0.30 to
 # 0.68 / 0.31). Measured on faucets (`--students-only`): 0.65 / 0.64 held out against 0.70 / 0.64 without the filter,

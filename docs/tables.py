@@ -868,7 +868,7 @@ RL_FROM_EXPERTS = RES / "rl_from_experts.md"
 LIMITS = {("laptop", "state"): "[the clone](#what-ppo-must-start-from)",
           ("faucet", "state"): "[the clone, the bonus](#rewards-dexarts-bonus-pays-for-speed)",
           ("laptop", "cloud"): "[a slow climb](#laptop)", ("faucet", "cloud"): "[unseen faucets](#faucet)",
-          ("toilet", "cloud"): "[students, template C](#toilet)", ("bucket", "cloud"): "[a run still going: 1344k of 2M](#bucket)"}
+          ("toilet", "cloud"): "[students, template C](#toilet)", ("bucket", "cloud"): "[a run still going: 1536k of 2M](#bucket)"}
 RECIPE_NOTES = {"dagger8_wide_flat": " (flat bonus)"}
 
 
